@@ -1,0 +1,2 @@
+//! The `motif` command-line tool.
+fn main() {}

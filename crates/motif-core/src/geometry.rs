@@ -1,0 +1,250 @@
+//! Small vector helpers on `[f64; 3]`, axis-aligned boxes, and 4×4 rigid transforms.
+//!
+//! Positions stay plain arrays so callers never need an internal type; these helpers keep the
+//! arithmetic readable. nalgebra is used where real 3×3 linear algebra (SVD, eigen) is needed.
+
+use serde::{Deserialize, Serialize};
+
+/// A point or vector in 3-D, in f64.
+pub type Point3 = [f64; 3];
+
+/// A row-major 4×4 matrix acting on column vectors (`p' = M p`), as in the shared JSON formats.
+pub type Mat4 = [[f64; 4]; 4];
+
+/// `a + b`.
+#[inline]
+pub fn add(a: Point3, b: Point3) -> Point3 {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+/// `a - b`.
+#[inline]
+pub fn sub(a: Point3, b: Point3) -> Point3 {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+/// `s * a`.
+#[inline]
+pub fn scale(a: Point3, s: f64) -> Point3 {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+
+/// Dot product.
+#[inline]
+pub fn dot(a: Point3, b: Point3) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Cross product `a × b`.
+#[inline]
+pub fn cross(a: Point3, b: Point3) -> Point3 {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+/// Euclidean length.
+#[inline]
+pub fn norm(a: Point3) -> f64 {
+    dot(a, a).sqrt()
+}
+
+/// Squared distance between two points.
+#[inline]
+pub fn dist2(a: Point3, b: Point3) -> f64 {
+    let d = sub(a, b);
+    dot(d, d)
+}
+
+/// Distance between two points.
+#[inline]
+pub fn dist(a: Point3, b: Point3) -> f64 {
+    dist2(a, b).sqrt()
+}
+
+/// `a / |a|`, or `None` when `|a|` is zero or not finite.
+#[inline]
+pub fn normalize(a: Point3) -> Option<Point3> {
+    let n = norm(a);
+    (n > 0.0 && n.is_finite()).then(|| scale(a, 1.0 / n))
+}
+
+/// Linear interpolation `a + t (b - a)`.
+#[inline]
+pub fn lerp(a: Point3, b: Point3, t: f64) -> Point3 {
+    [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2])]
+}
+
+/// True when all three coordinates are finite.
+#[inline]
+pub fn is_finite(a: Point3) -> bool {
+    a.iter().all(|c| c.is_finite())
+}
+
+/// An axis-aligned bounding box.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Aabb {
+    /// Smallest corner.
+    pub min: Point3,
+    /// Largest corner.
+    pub max: Point3,
+}
+
+impl Aabb {
+    /// The box of a set of points, or `None` when the set is empty.
+    pub fn from_points(points: &[Point3]) -> Option<Aabb> {
+        let first = *points.first()?;
+        let mut b = Aabb { min: first, max: first };
+        for p in points {
+            b.grow(*p);
+        }
+        Some(b)
+    }
+
+    /// Enlarges the box to contain `p`.
+    pub fn grow(&mut self, p: Point3) {
+        for k in 0..3 {
+            self.min[k] = self.min[k].min(p[k]);
+            self.max[k] = self.max[k].max(p[k]);
+        }
+    }
+
+    /// Edge lengths.
+    pub fn extent(&self) -> Point3 {
+        sub(self.max, self.min)
+    }
+
+    /// Length of the diagonal, the unit of every "relative" tolerance in Motif.
+    pub fn diagonal(&self) -> f64 {
+        norm(self.extent())
+    }
+
+    /// Centre of the box.
+    pub fn center(&self) -> Point3 {
+        lerp(self.min, self.max, 0.5)
+    }
+
+    /// True when `p` lies in the closed box.
+    pub fn contains(&self, p: Point3) -> bool {
+        (0..3).all(|k| p[k] >= self.min[k] && p[k] <= self.max[k])
+    }
+
+    /// Volume of the box (zero for flat boxes).
+    pub fn volume(&self) -> f64 {
+        let e = self.extent();
+        e[0].max(0.0) * e[1].max(0.0) * e[2].max(0.0)
+    }
+
+    /// Intersection of two boxes, `None` when they do not overlap.
+    pub fn intersection(&self, other: &Aabb) -> Option<Aabb> {
+        let mut r = *self;
+        for k in 0..3 {
+            r.min[k] = self.min[k].max(other.min[k]);
+            r.max[k] = self.max[k].min(other.max[k]);
+            if r.min[k] > r.max[k] {
+                return None;
+            }
+        }
+        Some(r)
+    }
+}
+
+/// The 4×4 identity.
+pub const IDENTITY4: Mat4 =
+    [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
+
+/// Applies an affine 4×4 transform to a point (the last row is assumed to be `0 0 0 1`).
+#[inline]
+pub fn transform_point(m: &Mat4, p: Point3) -> Point3 {
+    [
+        m[0][0] * p[0] + m[0][1] * p[1] + m[0][2] * p[2] + m[0][3],
+        m[1][0] * p[0] + m[1][1] * p[1] + m[1][2] * p[2] + m[1][3],
+        m[2][0] * p[0] + m[2][1] * p[1] + m[2][2] * p[2] + m[2][3],
+    ]
+}
+
+/// Applies the linear part of a 4×4 transform to a vector (no translation).
+#[inline]
+pub fn transform_vector(m: &Mat4, v: Point3) -> Point3 {
+    [
+        m[0][0] * v[0] + m[0][1] * v[1] + m[0][2] * v[2],
+        m[1][0] * v[0] + m[1][1] * v[1] + m[1][2] * v[2],
+        m[2][0] * v[0] + m[2][1] * v[1] + m[2][2] * v[2],
+    ]
+}
+
+/// Matrix product `a · b` (apply `b` first, then `a`).
+pub fn mat4_mul(a: &Mat4, b: &Mat4) -> Mat4 {
+    let mut r = [[0.0; 4]; 4];
+    for i in 0..4 {
+        for j in 0..4 {
+            r[i][j] = (0..4).map(|k| a[i][k] * b[k][j]).sum();
+        }
+    }
+    r
+}
+
+/// Builds a rigid transform from a row-major 3×3 rotation and a translation.
+pub fn mat4_from_rt(r: [[f64; 3]; 3], t: Point3) -> Mat4 {
+    [
+        [r[0][0], r[0][1], r[0][2], t[0]],
+        [r[1][0], r[1][1], r[1][2], t[1]],
+        [r[2][0], r[2][1], r[2][2], t[2]],
+        [0.0, 0.0, 0.0, 1.0],
+    ]
+}
+
+/// The rotation by `angle` radians about the unit `axis` through the origin (Rodrigues).
+pub fn rotation_about_axis(axis: Point3, angle: f64) -> [[f64; 3]; 3] {
+    let [x, y, z] = normalize(axis).unwrap_or([0.0, 0.0, 1.0]);
+    let (s, c) = angle.sin_cos();
+    let t = 1.0 - c;
+    [
+        [t * x * x + c, t * x * y - s * z, t * x * z + s * y],
+        [t * x * y + s * z, t * y * y + c, t * y * z - s * x],
+        [t * x * z - s * y, t * y * z + s * x, t * z * z + c],
+    ]
+}
+
+/// Any unit vector orthogonal to the unit vector `n` (stable for every direction).
+pub fn any_orthonormal(n: Point3) -> Point3 {
+    let a = if n[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
+    normalize(cross(n, a)).unwrap_or([0.0, 0.0, 1.0])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rotation_is_orthogonal_and_turns_x_to_y() {
+        let r = rotation_about_axis([0.0, 0.0, 1.0], std::f64::consts::FRAC_PI_2);
+        let m = mat4_from_rt(r, [0.0; 3]);
+        let p = transform_point(&m, [1.0, 0.0, 0.0]);
+        assert!(dist(p, [0.0, 1.0, 0.0]) < 1e-12);
+        let rt = mat4_mul(&m, &mat4_from_rt(transpose3(r), [0.0; 3]));
+        for i in 0..4 {
+            for j in 0..4 {
+                let e = if i == j { 1.0 } else { 0.0 };
+                assert!((rt[i][j] - e).abs() < 1e-12);
+            }
+        }
+    }
+
+    fn transpose3(r: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
+        let mut t = [[0.0; 3]; 3];
+        for i in 0..3 {
+            for j in 0..3 {
+                t[i][j] = r[j][i];
+            }
+        }
+        t
+    }
+
+    #[test]
+    fn aabb_intersection_and_volume() {
+        let a = Aabb { min: [0.0; 3], max: [2.0; 3] };
+        let b = Aabb { min: [1.0; 3], max: [3.0; 3] };
+        assert_eq!(a.intersection(&b).map(|i| i.volume()), Some(1.0));
+        let c = Aabb { min: [5.0; 3], max: [6.0; 3] };
+        assert!(a.intersection(&c).is_none());
+    }
+}

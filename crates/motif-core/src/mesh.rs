@@ -1,0 +1,453 @@
+//! Triangle meshes: the shared mesh type and its basic measures.
+//!
+//! `V` is `#V × 3` f64 positions, `F` is `#F × 3` u32 vertex indices, counter-clockwise seen from
+//! outside. Polygons are triangulated (as fans) on load, so every algorithm sees triangles only.
+
+use std::collections::HashMap;
+
+use serde::Serialize;
+
+use crate::geometry::{Aabb, Point3, add, cross, dist2, norm, normalize, scale, sub};
+use crate::{Error, Result};
+
+/// A triangle mesh with f64 positions and u32 triangles.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TriMesh {
+    /// Vertex positions, `#V × 3`.
+    pub positions: Vec<Point3>,
+    /// Triangles as vertex indices, `#F × 3`, counter-clockwise seen from outside.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Edge statistics of a mesh (see [`TriMesh::edge_stats`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct EdgeStats {
+    /// Number of distinct undirected edges.
+    pub edges: usize,
+    /// Edges used by exactly one triangle.
+    pub boundary: usize,
+    /// Edges used by three or more triangles.
+    pub non_manifold: usize,
+}
+
+/// Connected components of a mesh (see [`TriMesh::components`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Components {
+    /// Component id of every vertex (isolated vertices get a component of their own).
+    pub vertex_component: Vec<u32>,
+    /// Number of components that contain at least one triangle.
+    pub count: usize,
+    /// Number of vertices referenced by no triangle.
+    pub isolated_vertices: usize,
+}
+
+impl TriMesh {
+    /// Builds a mesh and checks it: indices in range and finite coordinates.
+    pub fn new(positions: Vec<Point3>, triangles: Vec<[u32; 3]>) -> Result<TriMesh> {
+        let m = TriMesh { positions, triangles };
+        m.validate()?;
+        Ok(m)
+    }
+
+    /// Number of vertices.
+    pub fn num_vertices(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Number of triangles.
+    pub fn num_triangles(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// Checks that every index is in range and every coordinate finite.
+    pub fn validate(&self) -> Result<()> {
+        if let Some(i) = self.positions.iter().position(|p| !crate::geometry::is_finite(*p)) {
+            return Err(Error::InvalidInput(format!("vertex {i} has a NaN or infinite coordinate")));
+        }
+        let n = self.positions.len() as u64;
+        for (f, t) in self.triangles.iter().enumerate() {
+            if let Some(&bad) = t.iter().find(|&&i| i as u64 >= n) {
+                return Err(Error::InvalidInput(format!(
+                    "triangle {f} refers to vertex {bad}, but the mesh has only {n} vertices"
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// Bounding box of the vertices, `None` for an empty mesh.
+    pub fn aabb(&self) -> Option<Aabb> {
+        Aabb::from_points(&self.positions)
+    }
+
+    /// Length of the bounding-box diagonal (0 for an empty mesh).
+    pub fn diagonal(&self) -> f64 {
+        self.aabb().map_or(0.0, |b| b.diagonal())
+    }
+
+    /// The three corner positions of triangle `f`.
+    #[inline]
+    pub fn corners(&self, f: usize) -> [Point3; 3] {
+        let [a, b, c] = self.triangles[f];
+        [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
+    }
+
+    /// Unnormalised normal `(b − a) × (c − a)` of triangle `f`; its length is twice the area.
+    #[inline]
+    pub fn face_cross(&self, f: usize) -> Point3 {
+        let [a, b, c] = self.corners(f);
+        cross(sub(b, a), sub(c, a))
+    }
+
+    /// Unit face normals (zero for degenerate triangles), `#F × 3`.
+    pub fn face_normals(&self) -> Vec<Point3> {
+        (0..self.triangles.len()).map(|f| normalize(self.face_cross(f)).unwrap_or([0.0; 3])).collect()
+    }
+
+    /// Triangle areas, `#F`.
+    pub fn face_areas(&self) -> Vec<f64> {
+        (0..self.triangles.len()).map(|f| 0.5 * norm(self.face_cross(f))).collect()
+    }
+
+    /// Total surface area.
+    pub fn area(&self) -> f64 {
+        self.face_areas().iter().sum()
+    }
+
+    /// Area-weighted vertex normals, unit length (zero for vertices with no non-degenerate
+    /// incident triangle), `#V × 3`.
+    pub fn vertex_normals(&self) -> Vec<Point3> {
+        let mut acc = vec![[0.0; 3]; self.positions.len()];
+        for f in 0..self.triangles.len() {
+            // |cross| = 2 × area, so summing the raw cross products weights by area.
+            let c = self.face_cross(f);
+            for &v in &self.triangles[f] {
+                acc[v as usize] = add(acc[v as usize], c);
+            }
+        }
+        acc.into_iter().map(|n| normalize(n).unwrap_or([0.0; 3])).collect()
+    }
+
+    /// Mean edge length over all triangle edges (each shared edge counted once per triangle).
+    pub fn mean_edge_length(&self) -> f64 {
+        if self.triangles.is_empty() {
+            return 0.0;
+        }
+        let mut s = 0.0;
+        for f in 0..self.triangles.len() {
+            let [a, b, c] = self.corners(f);
+            s += dist2(a, b).sqrt() + dist2(b, c).sqrt() + dist2(c, a).sqrt();
+        }
+        s / (3 * self.triangles.len()) as f64
+    }
+
+    /// Counts distinct edges, boundary edges (one triangle) and non-manifold edges (three or more).
+    pub fn edge_stats(&self) -> EdgeStats {
+        let mut count: HashMap<(u32, u32), u32> = HashMap::with_capacity(self.triangles.len() * 2);
+        for t in &self.triangles {
+            for k in 0..3 {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                if a == b {
+                    continue;
+                }
+                *count.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+            }
+        }
+        EdgeStats {
+            edges: count.len(),
+            boundary: count.values().filter(|&&c| c == 1).count(),
+            non_manifold: count.values().filter(|&&c| c >= 3).count(),
+        }
+    }
+
+    /// Connected components through shared vertices (union–find).
+    pub fn components(&self) -> Components {
+        let n = self.positions.len();
+        let mut uf = UnionFind::new(n);
+        let mut used = vec![false; n];
+        for t in &self.triangles {
+            for &v in t {
+                used[v as usize] = true;
+            }
+            uf.union(t[0] as usize, t[1] as usize);
+            uf.union(t[0] as usize, t[2] as usize);
+        }
+        let mut ids: HashMap<usize, u32> = HashMap::new();
+        let mut vertex_component = vec![0u32; n];
+        for v in 0..n {
+            let r = uf.find(v);
+            let next = ids.len() as u32;
+            vertex_component[v] = *ids.entry(r).or_insert(next);
+        }
+        let isolated_vertices = used.iter().filter(|u| !**u).count();
+        let mut with_tri = vec![false; ids.len()];
+        for t in &self.triangles {
+            with_tri[vertex_component[t[0] as usize] as usize] = true;
+        }
+        Components { vertex_component, count: with_tri.iter().filter(|x| **x).count(), isolated_vertices }
+    }
+
+    /// Number of triangles with zero area or a repeated vertex index.
+    pub fn degenerate_triangles(&self) -> usize {
+        (0..self.triangles.len())
+            .filter(|&f| {
+                let t = self.triangles[f];
+                t[0] == t[1] || t[1] == t[2] || t[0] == t[2] || norm(self.face_cross(f)) == 0.0
+            })
+            .count()
+    }
+
+    /// Removes triangles with a repeated vertex index or zero area; returns how many were removed.
+    pub fn remove_degenerate_triangles(&mut self) -> usize {
+        let before = self.triangles.len();
+        let positions = &self.positions;
+        self.triangles.retain(|t| {
+            if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
+                return false;
+            }
+            let [a, b, c] = [positions[t[0] as usize], positions[t[1] as usize], positions[t[2] as usize]];
+            norm(cross(sub(b, a), sub(c, a))) > 0.0
+        });
+        before - self.triangles.len()
+    }
+
+    /// Merges vertices closer than `relative_tolerance × diagonal` (0 merges exact duplicates
+    /// only), remaps the triangles, and drops triangles that collapse. Returns the number of
+    /// vertices removed. The first vertex of each cluster (in index order) is kept, so welding is
+    /// deterministic.
+    pub fn weld(&mut self, relative_tolerance: f64) -> usize {
+        let tol = relative_tolerance.max(0.0) * self.diagonal();
+        let (remap, kept) = weld_map(&self.positions, tol);
+        let before = self.positions.len();
+        let mut new_pos = Vec::with_capacity(kept);
+        let mut seen = vec![false; kept];
+        for (old, &new) in remap.iter().enumerate() {
+            if !seen[new as usize] {
+                seen[new as usize] = true;
+                new_pos.push(self.positions[old]);
+            }
+        }
+        self.positions = new_pos;
+        for t in &mut self.triangles {
+            for v in t.iter_mut() {
+                *v = remap[*v as usize];
+            }
+        }
+        self.triangles.retain(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]);
+        before - self.positions.len()
+    }
+
+    /// Removes vertices referenced by no triangle; returns the old→new index map (`u32::MAX` for
+    /// removed vertices).
+    pub fn remove_unreferenced_vertices(&mut self) -> Vec<u32> {
+        let mut map = vec![u32::MAX; self.positions.len()];
+        let mut next = 0u32;
+        let mut new_pos = Vec::new();
+        for t in &mut self.triangles {
+            for v in t.iter_mut() {
+                let m = &mut map[*v as usize];
+                if *m == u32::MAX {
+                    *m = next;
+                    next += 1;
+                    new_pos.push(self.positions[*v as usize]);
+                }
+                *v = *m;
+            }
+        }
+        self.positions = new_pos;
+        map
+    }
+
+    /// Appends another mesh (indices shifted).
+    pub fn append(&mut self, other: &TriMesh) {
+        let off = self.positions.len() as u32;
+        self.positions.extend_from_slice(&other.positions);
+        self.triangles.extend(other.triangles.iter().map(|t| [t[0] + off, t[1] + off, t[2] + off]));
+    }
+
+    /// Applies an affine 4×4 transform to every vertex; reflections flip the winding so normals
+    /// keep pointing outward.
+    pub fn transform(&mut self, m: &crate::geometry::Mat4) {
+        for p in &mut self.positions {
+            *p = crate::geometry::transform_point(m, *p);
+        }
+        let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+        if det < 0.0 {
+            for t in &mut self.triangles {
+                t.swap(1, 2);
+            }
+        }
+    }
+
+    /// Area-weighted centroid of the surface (vertex mean for a mesh without area).
+    pub fn surface_centroid(&self) -> Point3 {
+        let mut c = [0.0; 3];
+        let mut total = 0.0;
+        for f in 0..self.triangles.len() {
+            let [a, b, d] = self.corners(f);
+            let w = 0.5 * norm(cross(sub(b, a), sub(d, a)));
+            c = add(c, scale(add(add(a, b), d), w / 3.0));
+            total += w;
+        }
+        if total > 0.0 {
+            scale(c, 1.0 / total)
+        } else if !self.positions.is_empty() {
+            let s = self.positions.iter().fold([0.0; 3], |acc, p| add(acc, *p));
+            scale(s, 1.0 / self.positions.len() as f64)
+        } else {
+            [0.0; 3]
+        }
+    }
+}
+
+/// Maps each point to a representative: points within `tol` of an earlier kept point merge into
+/// it (greedy in index order, grid-hashed so it is linear for well-spread points). Returns the
+/// map to new compact indices and the number kept. `tol = 0` merges exactly equal points only.
+pub fn weld_map(points: &[Point3], tol: f64) -> (Vec<u32>, usize) {
+    let mut remap = vec![0u32; points.len()];
+    if tol <= 0.0 {
+        let mut exact: HashMap<[u64; 3], u32> = HashMap::with_capacity(points.len());
+        for (i, p) in points.iter().enumerate() {
+            // +0.0 and −0.0 are the same position.
+            let key = p.map(|c| if c == 0.0 { 0u64 } else { c.to_bits() });
+            let next = exact.len() as u32;
+            remap[i] = *exact.entry(key).or_insert(next);
+        }
+        return (remap, exact.len());
+    }
+    let cell = tol;
+    let key = |p: Point3| p.map(|c| (c / cell).floor() as i64);
+    let mut grid: HashMap<[i64; 3], Vec<u32>> = HashMap::new();
+    let mut kept: Vec<Point3> = Vec::new();
+    for (i, p) in points.iter().enumerate() {
+        let k = key(*p);
+        let mut found = None;
+        'search: for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    if let Some(list) = grid.get(&[k[0] + dx, k[1] + dy, k[2] + dz]) {
+                        for &j in list {
+                            if dist2(kept[j as usize], *p) <= tol * tol {
+                                found = Some(j);
+                                break 'search;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        remap[i] = match found {
+            Some(j) => j,
+            None => {
+                let j = kept.len() as u32;
+                kept.push(*p);
+                grid.entry(k).or_default().push(j);
+                j
+            }
+        };
+    }
+    (remap, kept.len())
+}
+
+/// Disjoint-set forest with path halving and union by size.
+#[derive(Debug, Clone)]
+pub struct UnionFind {
+    parent: Vec<usize>,
+    size: Vec<usize>,
+}
+
+impl UnionFind {
+    /// `n` singleton sets.
+    pub fn new(n: usize) -> Self {
+        UnionFind { parent: (0..n).collect(), size: vec![1; n] }
+    }
+
+    /// Representative of `x`'s set.
+    pub fn find(&mut self, mut x: usize) -> usize {
+        while self.parent[x] != x {
+            self.parent[x] = self.parent[self.parent[x]];
+            x = self.parent[x];
+        }
+        x
+    }
+
+    /// Merges the sets of `a` and `b`; returns false when they were already one set.
+    pub fn union(&mut self, a: usize, b: usize) -> bool {
+        let (mut a, mut b) = (self.find(a), self.find(b));
+        if a == b {
+            return false;
+        }
+        if self.size[a] < self.size[b] {
+            std::mem::swap(&mut a, &mut b);
+        }
+        self.parent[b] = a;
+        self.size[a] += self.size[b];
+        true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn two_triangles() -> TriMesh {
+        // A unit square split along its diagonal, plus a duplicate of vertex 2.
+        TriMesh::new(
+            vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]],
+            vec![[0, 1, 2], [0, 4, 3]],
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn areas_normals_and_edges() {
+        let m = two_triangles();
+        assert!((m.area() - 1.0).abs() < 1e-12);
+        for n in m.face_normals() {
+            assert!((n[2] - 1.0).abs() < 1e-12);
+        }
+        // Before welding the two triangles share only vertex 0: 6 edges, all boundary.
+        let e = m.edge_stats();
+        assert_eq!((e.edges, e.boundary, e.non_manifold), (6, 6, 0));
+    }
+
+    #[test]
+    fn welding_joins_duplicates() {
+        let mut m = two_triangles();
+        assert_eq!(m.weld(1e-9), 1);
+        assert_eq!(m.num_vertices(), 4);
+        let e = m.edge_stats();
+        assert_eq!((e.edges, e.boundary), (5, 4));
+        assert_eq!(m.components().count, 1);
+    }
+
+    #[test]
+    fn components_and_non_manifold() {
+        let mut m = two_triangles();
+        m.weld(0.0);
+        // A third triangle on the shared diagonal makes it non-manifold; a far triangle is a second component.
+        m.positions.extend([[0.5, 0.5, 1.0], [5.0, 0.0, 0.0], [6.0, 0.0, 0.0], [5.0, 1.0, 0.0]]);
+        m.triangles.extend([[0, 2, 4], [5, 6, 7]]);
+        assert_eq!(m.edge_stats().non_manifold, 1);
+        assert_eq!(m.components().count, 2);
+    }
+
+    #[test]
+    fn rejects_bad_indices_and_nan() {
+        assert!(TriMesh::new(vec![[0.0; 3]; 3], vec![[0, 1, 3]]).is_err());
+        assert!(TriMesh::new(vec![[f64::NAN, 0.0, 0.0]], vec![]).is_err());
+    }
+
+    #[test]
+    fn reflection_keeps_outward_winding() {
+        let mut m = two_triangles();
+        let before = m.face_normals()[0];
+        let mirror =
+            [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, -1.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
+        m.transform(&mirror);
+        let after = m.face_normals()[0];
+        assert!((before[2] + after[2]).abs() < 1e-12, "mirror in z flips the z normal");
+    }
+}

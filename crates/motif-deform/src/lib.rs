@@ -1,0 +1,1 @@
+//! Motif deform (placeholder crate; see ARCHITECTURE.md)

@@ -1,0 +1,1 @@
+//! Motif detect (placeholder crate; see ARCHITECTURE.md)

@@ -1,0 +1,1 @@
+//! Motif retarget (placeholder crate; see ARCHITECTURE.md)
