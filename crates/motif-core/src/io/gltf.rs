@@ -927,6 +927,18 @@ mod tests {
     }
 
     #[test]
+    fn without_scenes_every_root_node_is_read() {
+        let nodes = r#"[{"mesh":0},{"mesh":0,"translation":[0,0,5],"children":[2]},{"mesh":0}]"#;
+        let json = String::from_utf8(gltf_json(nodes, "", &tri_buffer())).unwrap();
+        let json = json.replace(r#""scene":0,"scenes":[{"nodes":[0]}],"#, "");
+        let m = read(json.as_bytes(), Path::new("t.gltf"), Format::Gltf, None).unwrap();
+        // Node 0, node 1 and its child 2 (which inherits the translation).
+        assert_eq!(m.vertices.len(), 9);
+        assert_eq!(m.triangles.len(), 3);
+        assert_eq!(m.vertices.positions[8], [0.0, 1.0, 5.0]);
+    }
+
+    #[test]
     fn accessor_out_of_bounds_and_cycles_are_errors() {
         let mut json =
             String::from_utf8(gltf_json(r#"[{"mesh":0}]"#, r#","indices":1"#, &tri_buffer())).unwrap();

@@ -194,7 +194,11 @@ impl Model {
 pub fn read(path: &Path) -> Result<Model> {
     let format = Format::from_path(path)?;
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    read_impl(&bytes, format, path, Some(path.parent().unwrap_or(Path::new(""))))
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    read_impl(&bytes, format, path, Some(dir))
 }
 
 /// Reads a model from memory (e.g. an upload); `name` is used in error messages only. glTF
@@ -288,7 +292,7 @@ pub enum StlEncoding {
     Ascii,
 }
 
-/// Options of [`write`].
+/// Options of [`write()`].
 #[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub struct WriteOptions {
     /// Encoding of `.ply` files; default binary little-endian.
