@@ -1,0 +1,147 @@
+//! Atomic file replacement: write a temporary file next to the target, fsync it, rename it over
+//! the target. Readers see the old file or the new one, never a half-written one.
+
+use std::fs::{self, File, OpenOptions};
+use std::io::{self, BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use crate::{Error, Result};
+
+/// Writes a file atomically: `f` writes into a buffered temporary file in the target's directory
+/// (so the final rename stays on one file system), which is flushed, fsynced and renamed over
+/// `path`; the directory is then fsynced (best effort) so the rename survives a crash. On any
+/// error, and if `f` panics, the temporary file is removed and an existing file at `path` is left
+/// untouched.
+///
+/// Used by every mesh writer and by other writers of the project (CSV, JSON).
+pub fn write_atomic(path: &Path, f: impl FnOnce(&mut dyn Write) -> io::Result<()>) -> Result<()> {
+    let name = path.file_name().ok_or_else(|| {
+        Error::io(path, io::Error::new(io::ErrorKind::InvalidInput, "the path names no file"))
+    })?;
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let (file, guard) = create_temp(dir, &name.to_string_lossy()).map_err(|e| Error::io(path, e))?;
+    let result = (|| {
+        let mut w = BufWriter::new(file);
+        f(&mut w)?;
+        let file = w.into_inner().map_err(|e| e.into_error())?;
+        file.sync_all()?;
+        drop(file);
+        fs::rename(&guard.path, path)
+    })();
+    match result {
+        Ok(()) => {
+            guard.disarm();
+            sync_dir(dir);
+            Ok(())
+        }
+        // The guard removes the temporary file.
+        Err(e) => Err(Error::io(path, e)),
+    }
+}
+
+/// Removes the temporary file when dropped, unless disarmed after the rename.
+struct TempGuard {
+    path: PathBuf,
+    armed: bool,
+}
+
+impl TempGuard {
+    fn disarm(mut self) {
+        self.armed = false;
+    }
+}
+
+impl Drop for TempGuard {
+    fn drop(&mut self) {
+        if self.armed {
+            let _ = fs::remove_file(&self.path);
+        }
+    }
+}
+
+/// Creates `.<name>.<pid>.<n>.tmp` in `dir`, with a name no other writer (thread or process) uses.
+fn create_temp(dir: &Path, name: &str) -> io::Result<(File, TempGuard)> {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let pid = std::process::id();
+    loop {
+        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+        let path = dir.join(format!(".{name}.{pid}.{n}.tmp"));
+        match OpenOptions::new().write(true).create_new(true).open(&path) {
+            Ok(file) => return Ok((file, TempGuard { path, armed: true })),
+            // A leftover of an earlier process with the same pid: try the next number.
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists => continue,
+            Err(e) => return Err(e),
+        }
+    }
+}
+
+/// Makes a rename in `dir` durable. Best effort: not every platform can open a directory.
+fn sync_dir(dir: &Path) {
+    #[cfg(unix)]
+    if let Ok(d) = File::open(dir) {
+        let _ = d.sync_all();
+    }
+    #[cfg(not(unix))]
+    let _ = dir;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn leftovers(dir: &Path) -> Vec<String> {
+        fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.ends_with(".tmp"))
+            .collect()
+    }
+
+    #[test]
+    fn replaces_the_file_and_leaves_no_temp() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.txt");
+        fs::write(&p, "old").unwrap();
+        write_atomic(&p, |w| w.write_all(b"new")).unwrap();
+        assert_eq!(fs::read_to_string(&p).unwrap(), "new");
+        assert!(leftovers(dir.path()).is_empty());
+    }
+
+    #[test]
+    fn error_keeps_the_old_file_and_removes_the_temp() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.txt");
+        fs::write(&p, "old").unwrap();
+        let e = write_atomic(&p, |w| {
+            w.write_all(b"partial")?;
+            Err(io::Error::other("disk full"))
+        })
+        .unwrap_err();
+        assert!(matches!(e, Error::Io { .. }) && e.to_string().contains("a.txt"), "{e}");
+        assert_eq!(fs::read_to_string(&p).unwrap(), "old");
+        assert!(leftovers(dir.path()).is_empty());
+    }
+
+    #[test]
+    fn panic_removes_the_temp() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("b.txt");
+        let r = std::panic::catch_unwind(|| {
+            let _ = write_atomic(&p, |_| panic!("writer bug"));
+        });
+        assert!(r.is_err());
+        assert!(!p.exists());
+        assert!(leftovers(dir.path()).is_empty());
+    }
+
+    #[test]
+    fn missing_directory_is_an_io_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("no/such/dir/c.txt");
+        assert!(matches!(write_atomic(&p, |w| w.write_all(b"x")), Err(Error::Io { .. })));
+    }
+}

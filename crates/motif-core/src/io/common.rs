@@ -1,0 +1,303 @@
+//! Pieces shared by the hand-written parsers: a line cursor over raw bytes, strict number
+//! parsing, the face collector that triangulates and drops degenerate faces, and size checks
+//! that keep allocations bounded by the bytes actually present.
+
+use std::path::Path;
+
+use crate::error::Position;
+use crate::{Error, Result};
+
+/// Shorthand for a [`Error::Parse`].
+pub(crate) fn perr(path: &Path, position: Position, message: impl Into<String>) -> Error {
+    Error::parse(path, position, message)
+}
+
+/// A token as a user can read it in an error message: lossy UTF-8, at most 40 characters.
+pub(crate) fn show(token: &[u8]) -> String {
+    let s = String::from_utf8_lossy(token);
+    let mut out: String = s.chars().take(40).collect();
+    if s.chars().count() > 40 {
+        out.push('…');
+    }
+    format!("{out:?}")
+}
+
+/// Iterates the lines of a text buffer as `(1-based line number, bytes without the line end)`.
+pub(crate) struct Lines<'a> {
+    bytes: &'a [u8],
+    pos: usize,
+    line: usize,
+}
+
+impl<'a> Lines<'a> {
+    pub(crate) fn new(bytes: &'a [u8]) -> Self {
+        Lines { bytes, pos: 0, line: 0 }
+    }
+
+    /// Bytes not yet returned.
+    pub(crate) fn remaining(&self) -> usize {
+        self.bytes.len() - self.pos
+    }
+
+    /// The number of the last line returned (0 before the first).
+    pub(crate) fn line(&self) -> usize {
+        self.line
+    }
+}
+
+impl<'a> Iterator for Lines<'a> {
+    type Item = (usize, &'a [u8]);
+
+    #[inline]
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.pos >= self.bytes.len() {
+            return None;
+        }
+        let rest = &self.bytes[self.pos..];
+        let (line, advance) = match rest.iter().position(|&b| b == b'\n') {
+            Some(i) => (&rest[..i], i + 1),
+            None => (rest, rest.len()),
+        };
+        self.pos += advance;
+        self.line += 1;
+        let line = line.strip_suffix(b"\r").unwrap_or(line);
+        Some((self.line, line))
+    }
+}
+
+/// Splits a line into whitespace-separated tokens.
+#[inline]
+pub(crate) fn tokens(line: &[u8]) -> impl Iterator<Item = &[u8]> {
+    line.split(|b| b.is_ascii_whitespace()).filter(|t| !t.is_empty())
+}
+
+/// The part of a line before a `#` comment.
+#[inline]
+pub(crate) fn strip_comment(line: &[u8]) -> &[u8] {
+    match line.iter().position(|&b| b == b'#') {
+        Some(i) => &line[..i],
+        None => line,
+    }
+}
+
+/// Checks that a line is UTF-8; the error says where the first bad byte is.
+pub(crate) fn check_utf8(path: &Path, line_no: usize, line: &[u8], format: &str) -> Result<()> {
+    match std::str::from_utf8(line) {
+        Ok(_) => Ok(()),
+        Err(e) => {
+            let at = e.valid_up_to();
+            Err(perr(
+                path,
+                Position::Line(line_no),
+                format!(
+                    "invalid UTF-8 (byte 0x{:02X} at column {}); {format} files must be UTF-8 text",
+                    line[at],
+                    at + 1
+                ),
+            ))
+        }
+    }
+}
+
+/// Parses a decimal real number; `None` when the token is not one. Accepts `nan`/`inf`, which the
+/// callers then reject with a message of their own.
+#[inline]
+pub(crate) fn parse_f64(token: &[u8]) -> Option<f64> {
+    std::str::from_utf8(token).ok()?.parse::<f64>().ok()
+}
+
+/// Parses a decimal integer with optional sign; `None` on anything else or overflow.
+#[inline]
+pub(crate) fn parse_i64(token: &[u8]) -> Option<i64> {
+    let (neg, digits) = match token.first()? {
+        b'-' => (true, &token[1..]),
+        b'+' => (false, &token[1..]),
+        _ => (false, token),
+    };
+    if digits.is_empty() {
+        return None;
+    }
+    let mut v: i64 = 0;
+    for &d in digits {
+        if !d.is_ascii_digit() {
+            return None;
+        }
+        v = v.checked_mul(10)?.checked_sub((d - b'0') as i64)?;
+    }
+    if neg { Some(v) } else { v.checked_neg() }
+}
+
+/// What went wrong with a token that should have been a number, in words.
+pub(crate) fn bad_number(token: &[u8], expected: &str) -> String {
+    if std::str::from_utf8(token).is_err() {
+        format!("invalid UTF-8 where {expected} was expected (the file must be UTF-8 text)")
+    } else {
+        format!("expected {expected}, found {}", show(token))
+    }
+}
+
+/// Parses a coordinate: a finite real number.
+#[inline]
+pub(crate) fn coord(path: &Path, pos: Position, token: &[u8]) -> Result<f64> {
+    match parse_f64(token) {
+        Some(v) if v.is_finite() => Ok(v),
+        Some(_) => Err(perr(path, pos, format!("coordinate {} is NaN or infinite", show(token)))),
+        None => Err(perr(path, pos, bad_number(token, "a number"))),
+    }
+}
+
+/// Converts a vertex count to `u32` range (triangles index with `u32`).
+pub(crate) fn check_vertex_count(path: &Path, pos: Position, count: u64) -> Result<()> {
+    if count > u32::MAX as u64 {
+        return Err(perr(
+            path,
+            pos,
+            format!("{count} vertices is more than Motif can index (at most {})", u32::MAX),
+        ));
+    }
+    Ok(())
+}
+
+/// A real colour component in 0..1 as an 8-bit value.
+#[inline]
+pub(crate) fn unit_to_u8(v: f64) -> u8 {
+    (v.clamp(0.0, 1.0) * 255.0).round() as u8
+}
+
+/// Collects faces as stored in a file, fan-triangulates polygons and drops degenerate ones.
+///
+/// A face is degenerate when its fan yields no triangle with three distinct vertices (for a
+/// triangle: fewer than 3 distinct indices). Degenerate faces are dropped and reported as a
+/// warning; a file whose faces are all degenerate is an error (see [`FaceSink::finish`]).
+#[derive(Debug, Default)]
+pub(crate) struct FaceSink {
+    pub(crate) triangles: Vec<[u32; 3]>,
+    /// Faces as stored, degenerate ones included.
+    pub(crate) source_faces: usize,
+    degenerate_faces: usize,
+    first_degenerate: Option<Position>,
+    /// Triangles dropped from polygons that still gave at least one good triangle.
+    degenerate_fan_triangles: usize,
+}
+
+impl FaceSink {
+    pub(crate) fn with_capacity(triangles: usize) -> Self {
+        FaceSink { triangles: Vec::with_capacity(triangles), ..Default::default() }
+    }
+
+    /// Adds one polygon (indices already validated against the vertex count).
+    #[inline]
+    pub(crate) fn add(&mut self, polygon: &[u32], pos: impl FnOnce() -> Position) {
+        self.source_faces += 1;
+        if let [a, b, c] = *polygon {
+            if a != b && b != c && a != c {
+                self.triangles.push([a, b, c]);
+            } else {
+                self.degenerate(pos);
+            }
+            return;
+        }
+        let mut good = 0;
+        let mut bad = 0;
+        if polygon.len() >= 3 {
+            let a = polygon[0];
+            for w in polygon[1..].windows(2) {
+                let (b, c) = (w[0], w[1]);
+                if a != b && b != c && a != c {
+                    self.triangles.push([a, b, c]);
+                    good += 1;
+                } else {
+                    bad += 1;
+                }
+            }
+        }
+        if good == 0 {
+            self.degenerate(pos);
+        } else {
+            self.degenerate_fan_triangles += bad;
+        }
+    }
+
+    fn degenerate(&mut self, pos: impl FnOnce() -> Position) {
+        self.degenerate_faces += 1;
+        if self.first_degenerate.is_none() {
+            self.first_degenerate = Some(pos());
+        }
+    }
+
+    /// Reports dropped faces as warnings; errors when there were faces but none survived.
+    pub(crate) fn finish(self, path: &Path, warnings: &mut Vec<String>) -> Result<(Vec<[u32; 3]>, usize)> {
+        if self.source_faces > 0 && self.triangles.is_empty() {
+            return Err(perr(
+                path,
+                self.first_degenerate.unwrap_or(Position::Whole),
+                format!(
+                    "all {} faces are degenerate (fewer than 3 distinct vertices), so there is no surface",
+                    self.source_faces
+                ),
+            ));
+        }
+        if self.degenerate_faces > 0 {
+            let at = match self.first_degenerate {
+                Some(p) if p != Position::Whole => format!(", first at {p}"),
+                _ => String::new(),
+            };
+            warnings.push(format!(
+                "dropped {} degenerate faces (fewer than 3 distinct vertices{at})",
+                self.degenerate_faces
+            ));
+        }
+        if self.degenerate_fan_triangles > 0 {
+            warnings.push(format!(
+                "dropped {} degenerate triangles from polygons with repeated vertices",
+                self.degenerate_fan_triangles
+            ));
+        }
+        Ok((self.triangles, self.source_faces))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn integers_parse_strictly() {
+        assert_eq!(parse_i64(b"-12"), Some(-12));
+        assert_eq!(parse_i64(b"+7"), Some(7));
+        assert_eq!(parse_i64(b"9223372036854775807"), Some(i64::MAX));
+        assert_eq!(parse_i64(b"-9223372036854775808"), Some(i64::MIN));
+        assert_eq!(parse_i64(b"9223372036854775808"), None);
+        assert_eq!(parse_i64(b"1.0"), None);
+        assert_eq!(parse_i64(b"-"), None);
+        assert_eq!(parse_i64(b""), None);
+    }
+
+    #[test]
+    fn lines_strip_crlf_and_count() {
+        let v: Vec<_> = Lines::new(b"a\r\nb\n\nc").collect();
+        assert_eq!(v, vec![(1, &b"a"[..]), (2, &b"b"[..]), (3, &b""[..]), (4, &b"c"[..])]);
+    }
+
+    #[test]
+    fn polygons_fan_and_degenerates_drop() {
+        let mut s = FaceSink::default();
+        s.add(&[0, 1, 2, 3], || Position::Line(1));
+        s.add(&[0, 0, 1], || Position::Line(2));
+        s.add(&[4, 5, 4, 6], || Position::Line(3));
+        let mut w = Vec::new();
+        let (t, n) = s.finish(Path::new("x"), &mut w).unwrap();
+        assert_eq!(n, 3);
+        assert_eq!(t, vec![[0, 1, 2], [0, 2, 3]]);
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(w[0].contains("dropped 2 degenerate faces") && w[0].contains("line 2"), "{w:?}");
+    }
+
+    #[test]
+    fn all_degenerate_is_an_error() {
+        let mut s = FaceSink::default();
+        s.add(&[1, 1, 2], || Position::Line(7));
+        let e = s.finish(Path::new("x.obj"), &mut Vec::new()).unwrap_err();
+        assert!(e.to_string().contains("line 7"), "{e}");
+    }
+}
