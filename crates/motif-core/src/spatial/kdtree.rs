@@ -91,7 +91,7 @@ impl KdTree {
     /// All points within distance `r` of `q` (inclusive), in no particular order; faster than
     /// [`KdTree::within`] when order does not matter.
     pub fn within_unsorted(&self, q: Point3, r: f64) -> Vec<Neighbour> {
-        if !(r >= 0.0) {
+        if r.is_nan() || r < 0.0 {
             return Vec::new();
         }
         self.tree
