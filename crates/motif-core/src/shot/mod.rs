@@ -176,6 +176,20 @@ impl ShotDescriptors {
 /// `points` and `normals` are `#P × 3` (normals unit length; non-finite normals are ignored),
 /// `keypoints` is `#K`. Fails when the lengths differ, a keypoint is out of range, a point is not
 /// finite, or an option is invalid.
+///
+/// ```
+/// use motif_core::shot::{SHOT_LEN, ShotFrame, ShotOptions, compute_shot};
+///
+/// // A 21 × 21 grid on the plane z = 0, normals +z; describe its centre in the world frame.
+/// let points: Vec<[f64; 3]> =
+///     (0..441).map(|i| [(i % 21) as f64 * 0.05, (i / 21) as f64 * 0.05, 0.0]).collect();
+/// let normals = vec![[0.0, 0.0, 1.0]; points.len()];
+/// let options = ShotOptions { radius: 0.3, frame: ShotFrame::World, ..Default::default() };
+/// let shots = compute_shot(&points, &normals, &[220], &options)?;
+/// assert!(shots.valid[0]);
+/// assert_eq!(shots.descriptor(0).map(<[f32]>::len), Some(SHOT_LEN));
+/// # Ok::<(), motif_core::Error>(())
+/// ```
 pub fn compute_shot(
     points: &[Point3],
     normals: &[Point3],
