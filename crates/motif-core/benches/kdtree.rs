@@ -40,7 +40,9 @@ fn descriptors(c: &mut Criterion) {
     let mut g = c.benchmark_group("descriptor_nn");
     g.sample_size(10);
     g.bench_function("shot352_10k_vs_10k", |b| {
-        b.iter(|| descriptor_nn(black_box(&d), black_box(&d), dim, true, &DescriptorNnOptions::default()).unwrap())
+        b.iter(|| {
+            descriptor_nn(black_box(&d), black_box(&d), dim, true, &DescriptorNnOptions::default()).unwrap()
+        })
     });
     g.finish();
 }

@@ -1,0 +1,291 @@
+//! Command-line syntax (clap derive). Each subcommand's arguments live next to its doc string so
+//! `motif help CMD` is the reference.
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+
+/// Structure-aware 3D content creation: find symmetries, repeated building blocks and dominant
+/// offsets in meshes and scans, and use them to deform and resize models.
+#[derive(Debug, Parser)]
+#[command(name = "motif", version, about, propagate_version = true, arg_required_else_help = true)]
+pub struct Cli {
+    #[command(flatten)]
+    pub global: GlobalArgs,
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Options every subcommand accepts.
+#[derive(Debug, Args)]
+pub struct GlobalArgs {
+    /// Hide progress bars and informational messages (results and errors still print).
+    #[arg(long, short, global = true)]
+    pub quiet: bool,
+    /// Seed for every random choice, so results reproduce exactly.
+    #[arg(long, global = true, default_value_t = 1)]
+    pub seed: u64,
+    /// Overwrite existing outputs, including writing onto an input path.
+    #[arg(long, global = true)]
+    pub force: bool,
+    /// Number of worker threads (default: all cores).
+    #[arg(long, global = true)]
+    pub threads: Option<usize>,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Print counts, bounding box, components and edge statistics of a mesh or point cloud.
+    Info(InfoArgs),
+    /// Convert between formats (OBJ, PLY, OFF, STL, glTF/GLB), chosen by extension.
+    Convert(ConvertArgs),
+    /// Sample points on a surface (random, or Poisson-disc) or resample a point cloud.
+    Sample(SampleArgs),
+    /// Estimate oriented normals (PCA + consistent orientation) and write a PLY with normals.
+    Normals(NormalsArgs),
+    /// Principal curvatures and directions by quadratic (jet) fitting.
+    Curvature(CurvatureArgs),
+    /// Local shape descriptors.
+    #[command(subcommand)]
+    Features(FeaturesCommand),
+    /// Rigidly align one shape to another with ICP.
+    Align(AlignArgs),
+    /// Write a procedural example shape with known structure.
+    Example(ExampleArgs),
+    /// Run everything Motif can do, end to end, on generated examples, and say what happened.
+    Demo(DemoArgs),
+}
+
+/// Where a JSON report goes: `--json` alone prints it on stdout, `--json FILE` writes a file.
+#[derive(Debug, Args, Clone, Default)]
+pub struct JsonArg {
+    /// Write a machine-readable JSON report (to FILE, or stdout when no FILE is given).
+    #[arg(long, value_name = "FILE", num_args = 0..=1, default_missing_value = "-")]
+    pub json: Option<PathBuf>,
+}
+
+#[derive(Debug, Args)]
+pub struct InfoArgs {
+    /// Input mesh or point cloud.
+    pub input: PathBuf,
+    #[command(flatten)]
+    pub json: JsonArg,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum, Default)]
+pub enum PlyEncodingArg {
+    Ascii,
+    #[default]
+    BinaryLe,
+    BinaryBe,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum, Default)]
+pub enum StlEncodingArg {
+    #[default]
+    Binary,
+    Ascii,
+}
+
+#[derive(Debug, Args)]
+pub struct EncodingArgs {
+    /// PLY encoding of the output.
+    #[arg(long, value_enum, default_value_t)]
+    pub ply_encoding: PlyEncodingArg,
+    /// STL encoding of the output.
+    #[arg(long, value_enum, default_value_t)]
+    pub stl_encoding: StlEncodingArg,
+}
+
+#[derive(Debug, Args)]
+pub struct ConvertArgs {
+    /// Input file.
+    pub input: PathBuf,
+    /// Output file; its extension picks the format.
+    pub output: PathBuf,
+    #[command(flatten)]
+    pub encoding: EncodingArgs,
+    #[command(flatten)]
+    pub json: JsonArg,
+}
+
+#[derive(Debug, Args)]
+#[command(group(clap::ArgGroup::new("amount").required(true).args(["radius", "count"])))]
+pub struct SampleArgs {
+    /// Input mesh or point cloud.
+    pub input: PathBuf,
+    /// Output point cloud (PLY keeps normals).
+    pub output: PathBuf,
+    /// Poisson-disc radius in model units (no two samples closer; implies --poisson).
+    #[arg(long)]
+    pub radius: Option<f64>,
+    /// Number of samples (exact for random sampling, approximate for Poisson-disc).
+    #[arg(long)]
+    pub count: Option<usize>,
+    /// Poisson-disc sampling (blue noise) instead of independent area-weighted samples.
+    #[arg(long)]
+    pub poisson: bool,
+    #[command(flatten)]
+    pub encoding: EncodingArgs,
+    #[command(flatten)]
+    pub json: JsonArg,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum, Default, PartialEq)]
+pub enum OrientationArg {
+    /// Consistent over a neighbour graph, outward on closed shapes.
+    #[default]
+    Consistent,
+    /// Towards the point given by --viewpoint.
+    Viewpoint,
+    /// Unoriented PCA normals (sign arbitrary).
+    None,
+}
+
+#[derive(Debug, Args)]
+pub struct NormalsArgs {
+    /// Input point cloud or mesh.
+    pub input: PathBuf,
+    /// Output PLY with nx ny nz.
+    pub output: PathBuf,
+    /// Neighbours used by the PCA fit.
+    #[arg(short, long, default_value_t = 16)]
+    pub k: usize,
+    /// How signs are chosen.
+    #[arg(long, value_enum, default_value_t)]
+    pub orientation: OrientationArg,
+    /// Viewpoint for --orientation viewpoint, as X,Y,Z.
+    #[arg(long, value_delimiter = ',', num_args = 3)]
+    pub viewpoint: Option<Vec<f64>>,
+    /// For meshes: estimate from the vertices as if they were a point cloud, instead of using
+    /// area-weighted face normals.
+    #[arg(long)]
+    pub from_points: bool,
+    #[command(flatten)]
+    pub encoding: EncodingArgs,
+    #[command(flatten)]
+    pub json: JsonArg,
+}
+
+#[derive(Debug, Args)]
+pub struct CurvatureArgs {
+    /// Input mesh or point cloud (normals used when present).
+    pub input: PathBuf,
+    /// Output: PLY (properties k1 k2 d1x d1y d1z d2x d2y d2z) or CSV.
+    pub output: PathBuf,
+    /// Neighbours of the quadratic fit (default 15).
+    #[arg(short, long, conflicts_with = "radius")]
+    pub k: Option<usize>,
+    /// Neighbourhood radius in model units instead of k nearest.
+    #[arg(long)]
+    pub radius: Option<f64>,
+    #[command(flatten)]
+    pub encoding: EncodingArgs,
+    #[command(flatten)]
+    pub json: JsonArg,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum FeaturesCommand {
+    /// SHOT descriptors (Tombari et al. 2010): 352 values per keypoint, PCL-compatible.
+    Shot(ShotArgs),
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum, Default, PartialEq)]
+pub enum FrameArg {
+    /// Local reference frame from the weighted covariance (rotation invariant).
+    #[default]
+    Lrf,
+    /// World axes (thesis 4.4: translation-only matching).
+    World,
+}
+
+#[derive(Debug, Args)]
+#[command(group(clap::ArgGroup::new("which").required(true).args(["keypoints", "every"])))]
+pub struct ShotArgs {
+    /// Input: a PLY with x y z nx ny nz, or any mesh (area-weighted vertex normals are used).
+    pub input: PathBuf,
+    /// Support radius in model units.
+    #[arg(long)]
+    pub radius: f64,
+    /// File of keypoint indices, one per line.
+    #[arg(long)]
+    pub keypoints: Option<PathBuf>,
+    /// Use every K-th point as a keypoint.
+    #[arg(long)]
+    pub every: Option<usize>,
+    /// Reference frame.
+    #[arg(long, value_enum, default_value_t)]
+    pub frame: FrameArg,
+    /// Output: `.csv` (index, frame, descriptor) or anything else for the binary PEERSHOT layout.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    #[command(flatten)]
+    pub json: JsonArg,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum, Default, PartialEq)]
+pub enum IcpMetricArg {
+    PointToPoint,
+    #[default]
+    PointToPlane,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum, Default, PartialEq)]
+pub enum IcpMotionArg {
+    #[default]
+    Rigid,
+    TranslationOnly,
+}
+
+#[derive(Debug, Args)]
+pub struct AlignArgs {
+    /// The shape to move.
+    pub source: PathBuf,
+    /// The shape to align to.
+    pub target: PathBuf,
+    /// Write the aligned source here (optional).
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    #[arg(long, value_enum, default_value_t)]
+    pub metric: IcpMetricArg,
+    #[arg(long, value_enum, default_value_t)]
+    pub motion: IcpMotionArg,
+    /// Fraction of correspondences kept each iteration (trimmed ICP).
+    #[arg(long, default_value_t = 0.9)]
+    pub trim: f64,
+    /// Maximum iterations.
+    #[arg(long, default_value_t = 50)]
+    pub iterations: usize,
+    #[command(flatten)]
+    pub encoding: EncodingArgs,
+    #[command(flatten)]
+    pub json: JsonArg,
+}
+
+#[derive(Debug, Args)]
+pub struct ExampleArgs {
+    /// Example name (see --list).
+    #[arg(required_unless_present = "list")]
+    pub name: Option<String>,
+    /// Output mesh file.
+    #[arg(required_unless_present = "list")]
+    pub output: Option<PathBuf>,
+    /// Also write the known structure (symmetries, cell pitch, instances) as JSON.
+    #[arg(long, value_name = "FILE")]
+    pub structure: Option<PathBuf>,
+    /// List the available examples.
+    #[arg(long)]
+    pub list: bool,
+    #[command(flatten)]
+    pub encoding: EncodingArgs,
+}
+
+#[derive(Debug, Args)]
+pub struct DemoArgs {
+    /// Folder for the demo's outputs (created; existing files in it are replaced).
+    #[arg(long, default_value = "motif-demo")]
+    pub out: PathBuf,
+    #[command(flatten)]
+    pub json: JsonArg,
+}

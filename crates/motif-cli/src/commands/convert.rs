@@ -1,0 +1,36 @@
+//! `motif convert`: format conversion.
+
+use std::time::Instant;
+
+use serde::Serialize;
+
+use crate::cli::{ConvertArgs, GlobalArgs};
+use crate::output::{maybe_json, ms_since};
+
+#[derive(Debug, Serialize)]
+struct ConvertReport {
+    input: String,
+    output: String,
+    vertices: usize,
+    triangles: usize,
+    warnings: Vec<String>,
+    ms: f64,
+}
+
+pub fn run(a: ConvertArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    let t = Instant::now();
+    let model = super::read_model(&a.input)?;
+    super::write_model(&a.output, &model, &[&a.input], g, &super::write_options(&a.encoding))?;
+    let r = ConvertReport {
+        input: a.input.display().to_string(),
+        output: a.output.display().to_string(),
+        vertices: model.vertices.len(),
+        triangles: model.triangles.len(),
+        warnings: model.warnings.clone(),
+        ms: ms_since(t),
+    };
+    if !crate::output::json_on_stdout(&a.json.json) {
+        super::note(g, format!("wrote {} ({} vertices, {} triangles)", r.output, r.vertices, r.triangles));
+    }
+    maybe_json(&a.json.json, &r)
+}

@@ -1,0 +1,332 @@
+//! `motif demo`: runs everything Motif can do, end to end, on generated examples, writes the
+//! results into one folder, and says what it did. It grows with each pipeline.
+
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::Context;
+use motif_core::curvature::{CurvatureOptions, principal_curvatures_mesh};
+use motif_core::geometry::{self, dot, mat4_from_rt, rotation_about_axis, transform_point};
+use motif_core::icp::{IcpMetric, IcpOptions, icp};
+use motif_core::io::{self, Format, Model, WriteOptions};
+use motif_core::normals::{NormalsOptions, estimate_normals};
+use motif_core::procedural;
+use motif_core::sampling::{Constraints, PoissonDiscOptions, Spacing, poisson_disc_surface};
+use motif_core::shot::{ShotOptions, compute_shot};
+use motif_core::spatial::{DescriptorNnOptions, KdTree, descriptor_nn};
+use motif_core::{AttributeData, PointCloud};
+use serde::Serialize;
+
+use crate::cli::{DemoArgs, GlobalArgs};
+use crate::output::{maybe_json, ms_since};
+
+#[derive(Debug, Serialize)]
+struct Step {
+    name: &'static str,
+    summary: String,
+    outputs: Vec<String>,
+    ms: f64,
+}
+
+#[derive(Debug, Serialize)]
+struct DemoReport {
+    out: String,
+    seed: u64,
+    steps: Vec<Step>,
+}
+
+struct Demo<'a> {
+    g: &'a GlobalArgs,
+    out: &'a Path,
+    steps: Vec<Step>,
+    total: usize,
+}
+
+impl Demo<'_> {
+    fn path(&self, name: &str) -> std::path::PathBuf {
+        self.out.join(name)
+    }
+
+    fn run(
+        &mut self,
+        name: &'static str,
+        f: impl FnOnce(&Self) -> anyhow::Result<(String, Vec<String>)>,
+    ) -> anyhow::Result<()> {
+        let t = Instant::now();
+        let (summary, outputs) = f(self).with_context(|| format!("demo step {name:?}"))?;
+        let ms = ms_since(t);
+        if !self.g.quiet {
+            println!("[{}/{}] {name} ({:.0} ms)", self.steps.len() + 1, self.total, ms);
+            for line in summary.lines() {
+                println!("      {line}");
+            }
+            if !outputs.is_empty() {
+                println!("      -> {}", outputs.join(", "));
+            }
+        }
+        self.steps.push(Step { name, summary, outputs, ms });
+        Ok(())
+    }
+}
+
+pub fn run(a: DemoArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    if !g.quiet {
+        println!("Motif demo: generated shapes with known structure, run through the geometry core.");
+        println!("Outputs go to {}/ (open the .obj/.ply files in any viewer).\n", a.out.display());
+    }
+    let mut d = Demo { g, out: &a.out, steps: Vec::new(), total: 6 };
+    d.run("procedural examples with known structure", examples)?;
+    d.run("IO round trip through every format", round_trip)?;
+    d.run("Poisson-disc sampling of the windmill", sampling)?;
+    d.run("normals estimated on a sampled gear", normals)?;
+    d.run("principal curvature of the gear (jet fitting)", curvature)?;
+    d.run("SHOT matching and ICP on a moved chair", shot_and_icp)?;
+    if !g.quiet {
+        println!("\nDone: {} steps; everything above is in {}/.", d.steps.len(), a.out.display());
+    }
+    let report = DemoReport { out: a.out.display().to_string(), seed: g.seed, steps: d.steps };
+    maybe_json(&a.json.json, &report)
+}
+
+fn write(path: &Path, model: &Model) -> anyhow::Result<String> {
+    io::write(path, model, &WriteOptions::default())?;
+    Ok(path.display().to_string())
+}
+
+fn examples(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
+    let mut lines = vec![format!(
+        "{:<18} {:>8} {:>9} {:>10} {:>7} {:>9}",
+        "shape", "vertices", "triangles", "symmetries", "cells", "instances"
+    )];
+    let mut outputs = Vec::new();
+    for name in procedural::names() {
+        let ex = procedural::generate(name, d.g.seed)?;
+        let mesh_path = d.path(&format!("{name}.obj"));
+        outputs.push(write(&mesh_path, &Model::from_mesh(&ex.mesh))?);
+        let s_path = d.path(&format!("{name}.structure.json"));
+        crate::output::write_json(&s_path, &ex.structure)?;
+        let s = &ex.structure;
+        lines.push(format!(
+            "{:<18} {:>8} {:>9} {:>10} {:>7} {:>9}",
+            name,
+            ex.mesh.num_vertices(),
+            ex.mesh.num_triangles(),
+            s.symmetry.symmetries.len(),
+            s.cells.map(|c| format!("{}x{}x{}", c[0], c[1], c[2])).unwrap_or_else(|| "-".into()),
+            s.instances.iter().map(|c| c.instances.len()).sum::<usize>(),
+        ));
+    }
+    outputs.truncate(3);
+    outputs.push("... and a .structure.json beside each".into());
+    Ok((lines.join("\n"), outputs))
+}
+
+fn round_trip(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
+    let ex = procedural::generate("fan", d.g.seed)?;
+    let model = Model::from_mesh(&ex.mesh);
+    let mut lines = Vec::new();
+    let mut outputs = Vec::new();
+    for ext in ["ply", "off", "stl", "glb", "obj"] {
+        let p = d.path(&format!("fan.{ext}"));
+        outputs.push(write(&p, &model)?);
+        let back = io::read(&p)?;
+        // Formats may reorder vertices (STL is welded on load), so compare as point sets.
+        let tree = KdTree::new(&back.vertices.positions)?;
+        let err = ex.mesh.positions.iter().map(|q| tree.nearest(*q).distance).fold(0.0, f64::max);
+        let same =
+            back.vertices.len() == ex.mesh.num_vertices() && back.triangles.len() == ex.mesh.num_triangles();
+        lines.push(format!(
+            "{:<4} {:?}: {} vertices, {} triangles, max position error {:.1e}{}",
+            ext,
+            Format::from_path(&p)?,
+            back.vertices.len(),
+            back.triangles.len(),
+            err,
+            if same { "" } else { "  (COUNTS DIFFER)" }
+        ));
+        anyhow::ensure!(same, "round trip through .{ext} changed the counts");
+    }
+    Ok((lines.join("\n"), outputs))
+}
+
+fn sampling(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
+    let ex = procedural::generate("windmill", d.g.seed)?;
+    let mesh = ex.mesh;
+    let r = 0.01 * mesh.diagonal();
+    let options = PoissonDiscOptions { spacing: Spacing::Radius(r), seed: d.g.seed, ..Default::default() };
+    let s = poisson_disc_surface(&mesh, &Constraints::default(), &options)?;
+    let cloud = PointCloud { positions: s.positions, normals: s.normals, ..Default::default() };
+    let tree = KdTree::new(&cloud.positions)?;
+    let min_gap = cloud
+        .positions
+        .iter()
+        .enumerate()
+        .map(|(i, p)| tree.knn(*p, 2).iter().find(|n| n.index != i).map_or(f64::INFINITY, |n| n.distance))
+        .fold(f64::INFINITY, f64::min);
+    let out = d.path("windmill_samples.ply");
+    let path = write(&out, &Model::from_point_cloud(cloud.clone()))?;
+    Ok((
+        format!(
+            "{} samples at radius r = {:.4} (1% of the diagonal) on {} triangles; closest pair {:.4} >= r",
+            cloud.len(),
+            r,
+            mesh.num_triangles(),
+            min_gap
+        ),
+        vec![path],
+    ))
+}
+
+fn normals(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
+    let ex = procedural::generate("gear", d.g.seed)?;
+    let options = PoissonDiscOptions {
+        spacing: Spacing::Radius(0.004 * ex.mesh.diagonal()),
+        seed: d.g.seed,
+        ..Default::default()
+    };
+    let s = poisson_disc_surface(&ex.mesh, &Constraints::default(), &options)?;
+    let cloud = PointCloud { positions: s.positions, normals: s.normals, ..Default::default() };
+    let truth = cloud.normals.clone().context("surface samples carry face normals")?;
+    let est = estimate_normals(&cloud.positions, &NormalsOptions::default())?;
+    let mut angles: Vec<f64> =
+        est.iter().zip(&truth).map(|(a, b)| dot(*a, *b).clamp(-1.0, 1.0).acos().to_degrees()).collect();
+    let flipped = angles.iter().filter(|a| **a > 90.0).count();
+    angles.sort_by(|a, b| a.total_cmp(b));
+    let median = angles[angles.len() / 2];
+    let out = d.path("gear_normals.ply");
+    let path = write(&out, &Model::from_point_cloud(PointCloud { normals: Some(est), ..cloud }))?;
+    Ok((
+        format!(
+            "{} Poisson-disc samples of the gear (0.4% of the diagonal apart), normals by PCA over 16 neighbours,\noriented over a spanning tree: median angle to the true face normal {:.2}°, {} pointing inward",
+            angles.len(),
+            median,
+            flipped
+        ),
+        vec![path],
+    ))
+}
+
+/// Blue (negative) – white (zero) – red (positive) colour for a curvature value.
+fn diverging(v: f64, scale: f64) -> [u8; 3] {
+    let t = (v / scale).clamp(-1.0, 1.0);
+    let c = |x: f64| (255.0 * x).round() as u8;
+    if t >= 0.0 { [255, c(1.0 - t), c(1.0 - t)] } else { [c(1.0 + t), c(1.0 + t), 255] }
+}
+
+fn curvature(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
+    let ex = procedural::generate("gear", d.g.seed)?;
+    let pc = principal_curvatures_mesh(&ex.mesh, &CurvatureOptions::default())?;
+    let mut k1: Vec<f64> = pc.iter().map(|c| c.k1).collect();
+    let mut sorted = k1.clone();
+    sorted.sort_by(|a, b| a.total_cmp(b));
+    let p95 = sorted[(sorted.len() * 95) / 100].abs().max(1e-9);
+    let mut model = Model::from_mesh(&ex.mesh);
+    model.vertices.colors = Some(k1.iter().map(|v| diverging(*v, p95)).collect());
+    model.vertices.set_attribute("k1", AttributeData::Float(std::mem::take(&mut k1)));
+    model.vertices.set_attribute("k2", AttributeData::Float(pc.iter().map(|c| c.k2).collect()));
+    let out = d.path("gear_curvature.ply");
+    let path = write(&out, &model)?;
+    Ok((
+        format!(
+            "{} vertices: k1 from {:.3} to {:.3} (median {:.3}); PLY coloured red = convex, blue = concave",
+            pc.len(),
+            sorted[0],
+            sorted[sorted.len() - 1],
+            sorted[sorted.len() / 2]
+        ),
+        vec![path],
+    ))
+}
+
+fn shot_and_icp(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
+    let ex = procedural::generate("chair", d.g.seed)?;
+    let diag = ex.mesh.diagonal();
+    let sample = |seed: u64| -> anyhow::Result<(Vec<[f64; 3]>, Vec<[f64; 3]>)> {
+        let options =
+            PoissonDiscOptions { spacing: Spacing::Radius(0.006 * diag), seed, ..Default::default() };
+        let s = poisson_disc_surface(&ex.mesh, &Constraints::default(), &options)?;
+        let n = s.normals.context("surface samples carry face normals")?;
+        Ok((s.positions, n))
+    };
+    // Two independent samplings (different seeds), the second moved by a known rigid motion:
+    // 25° about a tilted axis plus a shift. Nothing is shared but the surface.
+    let (rest, rest_normals) = sample(d.g.seed)?;
+    let (other, other_normals) = sample(d.g.seed.wrapping_add(1))?;
+    let axis = [0.3, 1.0, 0.2];
+    let moved_from_rest =
+        mat4_from_rt(rotation_about_axis(axis, 25f64.to_radians()), [0.1 * diag, -0.05 * diag, 0.02 * diag]);
+    let moved: Vec<[f64; 3]> = other.iter().map(|p| transform_point(&moved_from_rest, *p)).collect();
+    let moved_normals: Vec<[f64; 3]> =
+        other_normals.iter().map(|n| geometry::transform_vector(&moved_from_rest, *n)).collect();
+
+    let shot_opts = ShotOptions { radius: 0.08 * diag, ..Default::default() };
+    let ka: Vec<usize> = (0..rest.len()).step_by(5).collect();
+    let kb: Vec<usize> = (0..moved.len()).step_by(5).collect();
+    let a = compute_shot(&rest, &rest_normals, &ka, &shot_opts)?;
+    let b = compute_shot(&moved, &moved_normals, &kb, &shot_opts)?;
+    let nn = descriptor_nn(&a.descriptors, &b.descriptors, 352, false, &DescriptorNnOptions::default())?;
+    // A match is right when it lands within 3% of the diagonal of where the motion sends the keypoint.
+    let tol = 0.03 * diag;
+    let correct = nn
+        .iter()
+        .enumerate()
+        .filter(|(i, m)| {
+            m.is_some_and(|m| {
+                geometry::dist(moved[kb[m.target]], transform_point(&moved_from_rest, rest[ka[*i]])) < tol
+            })
+        })
+        .count();
+    // Structured shapes repeat themselves: a descriptor alone cannot tell the left legs from the
+    // right. Count the matches that land on the right place up to the chair's known mirror.
+    let mut group: Vec<[[f64; 4]; 4]> = vec![geometry::IDENTITY4];
+    for sym in &ex.structure.symmetry.symmetries {
+        if let procedural::SymmetryKind::Group { generators, .. } = &sym.kind {
+            group.extend(generators.iter().copied());
+        }
+    }
+    let up_to_symmetry = nn
+        .iter()
+        .enumerate()
+        .filter(|(i, m)| {
+            m.is_some_and(|m| {
+                group.iter().any(|g| {
+                    let image = transform_point(&moved_from_rest, transform_point(g, rest[ka[*i]]));
+                    geometry::dist(moved[kb[m.target]], image) < tol
+                })
+            })
+        })
+        .count();
+
+    let icp_opts = IcpOptions { metric: IcpMetric::PointToPlane, ..Default::default() };
+    // Start ICP from a coarse guess (20° instead of 25°, no shift) and let it find the rest.
+    let start = mat4_from_rt(rotation_about_axis(axis, 20f64.to_radians()), [0.0; 3]);
+    let res = icp(&rest, &moved, Some(&moved_normals), &start, &icp_opts)?;
+    let err = rest
+        .iter()
+        .map(|p| geometry::dist(transform_point(&res.transform, *p), transform_point(&moved_from_rest, *p)))
+        .fold(0.0, f64::max);
+    let out = d.path("chair_moved.ply");
+    let path = write(
+        &out,
+        &Model::from_point_cloud(PointCloud {
+            positions: moved,
+            normals: Some(moved_normals),
+            ..Default::default()
+        }),
+    )?;
+    Ok((
+        format!(
+            "two independent samplings ({} and {} points); SHOT with local frames (radius 8% of the diagonal)\non every 5th point, across a 25° rotation: {:.1}% of {} keypoints matched to the right place,\n{:.1}% up to the chair's mirror symmetry (single features are ambiguous on structured shapes)\nICP point-to-plane from a 20° guess: rmse {:.2e} (sampling differs), {} iterations,\nmax error vs the true motion {:.1e} of the diagonal",
+            rest.len(),
+            other.len(),
+            100.0 * correct as f64 / ka.len().max(1) as f64,
+            ka.len(),
+            100.0 * up_to_symmetry as f64 / ka.len().max(1) as f64,
+            res.rmse,
+            res.iterations,
+            err / diag
+        ),
+        vec![path],
+    ))
+}

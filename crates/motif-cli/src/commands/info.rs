@@ -1,0 +1,116 @@
+//! `motif info`: what a file holds.
+
+use std::time::Instant;
+
+use motif_core::TriMesh;
+use serde::Serialize;
+
+use crate::cli::{GlobalArgs, InfoArgs};
+use crate::output::{maybe_json, ms_since};
+
+#[derive(Debug, Serialize)]
+struct InfoReport {
+    file: String,
+    format: String,
+    kind: &'static str,
+    vertices: usize,
+    faces_in_file: usize,
+    triangles: usize,
+    bbox_min: Option<[f64; 3]>,
+    bbox_max: Option<[f64; 3]>,
+    diagonal: f64,
+    surface_area: f64,
+    components: usize,
+    isolated_vertices: usize,
+    edges: usize,
+    boundary_edges: usize,
+    non_manifold_edges: usize,
+    degenerate_triangles: usize,
+    has_normals: bool,
+    has_colors: bool,
+    attributes: Vec<String>,
+    warnings: Vec<String>,
+    load_ms: f64,
+}
+
+pub fn run(a: InfoArgs, _g: &GlobalArgs) -> anyhow::Result<()> {
+    let t = Instant::now();
+    let model = super::read_model(&a.input)?;
+    let load_ms = ms_since(t);
+    let mesh = TriMesh { positions: model.vertices.positions.clone(), triangles: model.triangles.clone() };
+    let bbox = mesh.aabb();
+    let comps = mesh.components();
+    let edges = mesh.edge_stats();
+    let r = InfoReport {
+        file: a.input.display().to_string(),
+        format: format!("{:?}", model.format),
+        kind: if model.is_mesh() { "mesh" } else { "point cloud" },
+        vertices: mesh.num_vertices(),
+        faces_in_file: model.source_faces,
+        triangles: mesh.num_triangles(),
+        bbox_min: bbox.map(|b| b.min),
+        bbox_max: bbox.map(|b| b.max),
+        diagonal: mesh.diagonal(),
+        surface_area: mesh.area(),
+        components: comps.count,
+        isolated_vertices: comps.isolated_vertices,
+        edges: edges.edges,
+        boundary_edges: edges.boundary,
+        non_manifold_edges: edges.non_manifold,
+        degenerate_triangles: mesh.degenerate_triangles(),
+        has_normals: model.vertices.normals.is_some(),
+        has_colors: model.vertices.colors.is_some(),
+        attributes: model.vertices.attributes.iter().map(|x| x.name.clone()).collect(),
+        warnings: model.warnings.clone(),
+        load_ms,
+    };
+    if a.json.json.is_some() {
+        return maybe_json(&a.json.json, &r);
+    }
+    println!("{}", r.file);
+    println!("  format       {} ({})", r.format, r.kind);
+    println!("  vertices     {}", r.vertices);
+    if model.is_mesh() {
+        println!("  faces        {} in file, {} triangles", r.faces_in_file, r.triangles);
+    }
+    if let (Some(lo), Some(hi)) = (r.bbox_min, r.bbox_max) {
+        println!(
+            "  bbox         [{:.6}, {:.6}, {:.6}] .. [{:.6}, {:.6}, {:.6}]",
+            lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
+        );
+        println!("  diagonal     {:.6}", r.diagonal);
+    }
+    if model.is_mesh() {
+        println!("  area         {:.6}", r.surface_area);
+        println!(
+            "  components   {}{}",
+            r.components,
+            if r.isolated_vertices > 0 {
+                format!(" (+{} isolated vertices)", r.isolated_vertices)
+            } else {
+                String::new()
+            }
+        );
+        println!(
+            "  edges        {} ({} boundary, {} non-manifold)",
+            r.edges, r.boundary_edges, r.non_manifold_edges
+        );
+        println!("  degenerate   {} triangles", r.degenerate_triangles);
+    }
+    let mut extras = Vec::new();
+    if r.has_normals {
+        extras.push("normals".to_string());
+    }
+    if r.has_colors {
+        extras.push("colours".to_string());
+    }
+    extras.extend(r.attributes.iter().cloned());
+    if !extras.is_empty() {
+        println!("  per vertex   {}", extras.join(", "));
+    }
+    for w in &r.warnings {
+        println!("  warning      {w}");
+    }
+    println!("  loaded in    {:.1} ms", r.load_ms);
+    Ok(())
+}

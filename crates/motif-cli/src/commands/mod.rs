@@ -1,0 +1,74 @@
+//! One module per subcommand; each exposes `run(args, &GlobalArgs)`.
+
+mod align;
+mod convert;
+mod curvature;
+mod demo;
+mod example;
+mod features;
+mod info;
+mod normals;
+mod sample;
+
+use std::path::Path;
+
+use anyhow::Context;
+use motif_core::io::{self, Model, PlyEncoding, StlEncoding, WriteOptions};
+
+use crate::cli::{Cli, Command, EncodingArgs, FeaturesCommand, PlyEncodingArg, StlEncodingArg};
+
+/// Dispatches a parsed command line.
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    let g = &cli.global;
+    match cli.command {
+        Command::Info(a) => info::run(a, g),
+        Command::Convert(a) => convert::run(a, g),
+        Command::Sample(a) => sample::run(a, g),
+        Command::Normals(a) => normals::run(a, g),
+        Command::Curvature(a) => curvature::run(a, g),
+        Command::Features(FeaturesCommand::Shot(a)) => features::run_shot(a, g),
+        Command::Align(a) => align::run(a, g),
+        Command::Example(a) => example::run(a, g),
+        Command::Demo(a) => demo::run(a, g),
+    }
+}
+
+/// Reads any supported file, with the error naming the file.
+pub fn read_model(path: &Path) -> anyhow::Result<Model> {
+    Ok(io::read(path)?)
+}
+
+/// The write options the user chose.
+pub fn write_options(e: &EncodingArgs) -> WriteOptions {
+    WriteOptions {
+        ply: match e.ply_encoding {
+            PlyEncodingArg::Ascii => PlyEncoding::Ascii,
+            PlyEncodingArg::BinaryLe => PlyEncoding::BinaryLittleEndian,
+            PlyEncodingArg::BinaryBe => PlyEncoding::BinaryBigEndian,
+        },
+        stl: match e.stl_encoding {
+            StlEncodingArg::Binary => StlEncoding::Binary,
+            StlEncodingArg::Ascii => StlEncoding::Ascii,
+        },
+    }
+}
+
+/// Writes a model atomically after checking it does not overwrite an input.
+pub fn write_model(
+    path: &Path,
+    model: &Model,
+    inputs: &[&Path],
+    g: &crate::cli::GlobalArgs,
+    options: &WriteOptions,
+) -> anyhow::Result<()> {
+    crate::output::check_output(path, inputs, g.force)?;
+    io::write(path, model, options).with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
+
+/// Prints an informational line on stderr unless quiet (stdout is kept for results).
+pub fn note(g: &crate::cli::GlobalArgs, msg: impl AsRef<str>) {
+    if !g.quiet {
+        eprintln!("{}", msg.as_ref());
+    }
+}

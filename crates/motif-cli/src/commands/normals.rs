@@ -1,0 +1,61 @@
+//! `motif normals`: oriented normals for point clouds (and meshes).
+
+use std::time::Instant;
+
+use motif_core::TriMesh;
+use motif_core::normals::{NormalsOptions, Orientation, estimate_normals};
+use serde::Serialize;
+
+use crate::cli::{GlobalArgs, NormalsArgs, OrientationArg};
+use crate::output::{bad_input, maybe_json, ms_since};
+
+#[derive(Debug, Serialize)]
+struct NormalsReport {
+    input: String,
+    output: String,
+    points: usize,
+    method: &'static str,
+    neighbours: usize,
+    orientation: String,
+    ms: f64,
+}
+
+pub fn run(a: NormalsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    let mut model = super::read_model(&a.input)?;
+    let t = Instant::now();
+    let orientation = match a.orientation {
+        OrientationArg::Consistent => Orientation::Consistent,
+        OrientationArg::None => Orientation::Unoriented,
+        OrientationArg::Viewpoint => match a.viewpoint.as_deref() {
+            Some([x, y, z]) => Orientation::TowardsViewpoint([*x, *y, *z]),
+            _ => return Err(bad_input("--orientation viewpoint needs --viewpoint X,Y,Z")),
+        },
+    };
+    if a.k < 3 {
+        return Err(bad_input(format!("-k {}: a plane fit needs at least 3 neighbours", a.k)));
+    }
+    let use_mesh = model.is_mesh() && !a.from_points;
+    let normals = if use_mesh {
+        TriMesh { positions: model.vertices.positions.clone(), triangles: model.triangles.clone() }
+            .vertex_normals()
+    } else {
+        let opts = NormalsOptions { neighbours: a.k, orientation, ..Default::default() };
+        estimate_normals(&model.vertices.positions, &opts)?
+    };
+    model.vertices.normals = Some(normals);
+    let ms = ms_since(t);
+    super::write_model(&a.output, &model, &[&a.input], g, &super::write_options(&a.encoding))?;
+    let r = NormalsReport {
+        input: a.input.display().to_string(),
+        output: a.output.display().to_string(),
+        points: model.vertices.len(),
+        method: if use_mesh { "area-weighted face normals" } else { "PCA over k neighbours" },
+        neighbours: a.k,
+        orientation: format!("{orientation:?}"),
+        ms,
+    };
+    if !crate::output::json_on_stdout(&a.json.json) {
+        super::note(g, format!("wrote {} ({} normals, {}, {:.1} ms)", r.output, r.points, r.method, r.ms));
+    }
+    maybe_json(&a.json.json, &r)
+}

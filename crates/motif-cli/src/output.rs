@@ -1,0 +1,87 @@
+//! Output discipline shared by every subcommand: exit codes, refusing to overwrite inputs,
+//! atomic writes, and JSON reports.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use serde::Serialize;
+
+/// An error in how the command was called or in what it was given (exit code 2).
+#[derive(Debug)]
+pub struct BadInput(pub String);
+
+impl std::fmt::Display for BadInput {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for BadInput {}
+
+/// Shorthand: `return Err(bad_input(...))`.
+pub fn bad_input(msg: impl Into<String>) -> anyhow::Error {
+    anyhow::Error::new(BadInput(msg.into()))
+}
+
+/// Exit code for an error: 2 when the input or the usage is at fault, 1 otherwise.
+pub fn exit_code(err: &anyhow::Error) -> u8 {
+    for cause in err.chain() {
+        if cause.downcast_ref::<BadInput>().is_some() {
+            return 2;
+        }
+        if let Some(e) = cause.downcast_ref::<motif_core::Error>() {
+            return if e.is_bad_input() { 2 } else { 1 };
+        }
+    }
+    1
+}
+
+/// Refuses to write `output` when it is one of the `inputs` (same file after resolving links),
+/// unless `force`. Outputs that merely exist are replaced, as `cp` does.
+pub fn check_output(output: &Path, inputs: &[&Path], force: bool) -> anyhow::Result<()> {
+    if force {
+        return Ok(());
+    }
+    let Ok(out) = std::fs::canonicalize(output) else { return Ok(()) };
+    for input in inputs {
+        if std::fs::canonicalize(input).is_ok_and(|i| i == out) {
+            return Err(bad_input(format!(
+                "{}: refusing to overwrite an input file (choose another output or pass --force)",
+                output.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Writes a JSON report: to stdout when `dest` is `-`, else atomically to the file.
+pub fn write_json<T: Serialize>(dest: &Path, value: &T) -> anyhow::Result<()> {
+    let text = serde_json::to_string_pretty(value).context("serialising the JSON report")?;
+    if dest == Path::new("-") {
+        println!("{text}");
+        return Ok(());
+    }
+    motif_core::io::write_atomic(dest, |w| {
+        w.write_all(text.as_bytes())?;
+        w.write_all(b"\n")
+    })?;
+    Ok(())
+}
+
+/// Writes the report when `--json` was given.
+pub fn maybe_json<T: Serialize>(dest: &Option<PathBuf>, value: &T) -> anyhow::Result<()> {
+    match dest {
+        Some(d) => write_json(d, value),
+        None => Ok(()),
+    }
+}
+
+/// True when the JSON report goes to stdout, so human-readable text must not.
+pub fn json_on_stdout(dest: &Option<PathBuf>) -> bool {
+    dest.as_deref() == Some(Path::new("-"))
+}
+
+/// Milliseconds since `t`, rounded to microseconds for reports.
+pub fn ms_since(t: std::time::Instant) -> f64 {
+    (t.elapsed().as_secs_f64() * 1e6).round() / 1e3
+}
