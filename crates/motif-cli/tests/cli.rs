@@ -128,3 +128,123 @@ fn example_list_names_every_required_shape() {
         assert!(names.lines().any(|l| l.trim() == n), "missing example {n} in {names}");
     }
 }
+
+fn json_of(o: &Output) -> serde_json::Value {
+    assert!(o.status.success(), "command failed: {}", stderr(o));
+    serde_json::from_slice(&o.stdout).expect("--json prints JSON on stdout")
+}
+
+#[test]
+fn sample_normals_curvature_on_a_generated_gear() {
+    let d = tmp();
+    assert!(motif(&["example", "gear", "gear.ply"], d.path()).status.success());
+    let r = json_of(&motif(
+        &["sample", "gear.ply", "pts.ply", "--count", "3000", "--poisson", "--json"],
+        d.path(),
+    ));
+    let n = r["samples"].as_u64().unwrap();
+    assert!((2900..=3100).contains(&n), "about 3000 Poisson samples, got {n}");
+    let r = json_of(&motif(&["sample", "gear.ply", "rnd.ply", "--count", "500", "--json"], d.path()));
+    assert_eq!(r["samples"], 500);
+    // Normals of the samples, re-estimated from the points alone.
+    let r = json_of(&motif(&["normals", "pts.ply", "pts_n.ply", "--json"], d.path()));
+    assert_eq!(r["points"].as_u64(), Some(n));
+    let info = json_of(&motif(&["info", "pts_n.ply", "--json"], d.path()));
+    assert_eq!(info["has_normals"], true);
+    // Curvature as PLY properties and as CSV.
+    let r = json_of(&motif(&["curvature", "gear.ply", "k.ply", "--json"], d.path()));
+    assert_eq!(r["points"], 2040);
+    let info = json_of(&motif(&["info", "k.ply", "--json"], d.path()));
+    let attrs: Vec<String> =
+        info["attributes"].as_array().unwrap().iter().map(|a| a.as_str().unwrap().to_string()).collect();
+    for a in ["k1", "k2", "d1x", "d2z"] {
+        assert!(attrs.iter().any(|x| x == a), "missing {a} in {attrs:?}");
+    }
+    let o = motif(&["curvature", "gear.ply", "k.csv", "-k", "20"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let csv = std::fs::read_to_string(d.path().join("k.csv")).unwrap();
+    assert!(csv.starts_with("index,x,y,z,k1,k2"));
+    assert_eq!(csv.lines().count(), 2041);
+    // Bad option values are usage errors.
+    assert_eq!(motif(&["curvature", "gear.ply", "k2.ply", "-k", "3"], d.path()).status.code(), Some(2));
+    assert_eq!(motif(&["sample", "gear.ply", "x.ply", "--radius", "-1"], d.path()).status.code(), Some(2));
+}
+
+#[test]
+fn shot_features_write_the_peershot_layout() {
+    let d = tmp();
+    assert!(motif(&["example", "fan", "fan.obj"], d.path()).status.success());
+    std::fs::write(d.path().join("kp.txt"), "0\n5\n# a comment\n17\n").unwrap();
+    let o = motif(
+        &["features", "shot", "fan.obj", "--radius", "0.5", "--keypoints", "kp.txt", "-o", "f.bin"],
+        d.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let b = std::fs::read(d.path().join("f.bin")).unwrap();
+    assert_eq!(&b[..8], b"PEERSHOT");
+    assert_eq!(u32::from_le_bytes(b[8..12].try_into().unwrap()), 3);
+    assert_eq!(u32::from_le_bytes(b[12..16].try_into().unwrap()), 352);
+    assert_eq!(b.len(), 16 + 3 * (4 + 9 * 4 + 352 * 4));
+    assert_eq!(u32::from_le_bytes(b[16..20].try_into().unwrap()), 0);
+    // CSV and the world frame.
+    let r = json_of(&motif(
+        &[
+            "features", "shot", "fan.obj", "--radius", "0.5", "--every", "50", "--frame", "world", "-o",
+            "f.csv", "--json",
+        ],
+        d.path(),
+    ));
+    assert_eq!(r["keypoints"], 13);
+    let csv = std::fs::read_to_string(d.path().join("f.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 14, "header + one line per keypoint");
+    // A keypoint index past the end is bad input naming the file and line.
+    std::fs::write(d.path().join("bad.txt"), "1\n999999\n").unwrap();
+    let o = motif(
+        &["features", "shot", "fan.obj", "--radius", "0.5", "--keypoints", "bad.txt", "-o", "g.bin"],
+        d.path(),
+    );
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("bad.txt: line 2"), "{}", stderr(&o));
+    assert!(!d.path().join("g.bin").exists());
+}
+
+#[test]
+fn align_recovers_a_known_motion_and_demo_runs() {
+    let d = tmp();
+    assert!(motif(&["example", "chair", "chair.ply"], d.path()).status.success());
+    assert!(
+        motif(&["sample", "chair.ply", "a.ply", "--count", "4000", "--poisson"], d.path()).status.success()
+    );
+    // Move the samples by a known translation via OBJ text, then align back.
+    let model = std::fs::read_to_string({
+        let o = motif(&["convert", "a.ply", "a.obj"], d.path());
+        assert!(o.status.success(), "{}", stderr(&o));
+        d.path().join("a.obj")
+    })
+    .unwrap();
+    let moved: String = model
+        .lines()
+        .map(|l| {
+            let f: Vec<&str> = l.split_whitespace().collect();
+            if f.first() == Some(&"v") {
+                let v: Vec<f64> = f[1..4].iter().map(|x| x.parse().unwrap()).collect();
+                format!("v {} {} {}\n", v[0] + 0.02, v[1] - 0.01, v[2] + 0.015)
+            } else {
+                format!("{l}\n")
+            }
+        })
+        .collect();
+    std::fs::write(d.path().join("b.obj"), moved).unwrap();
+    let r = json_of(&motif(&["align", "a.obj", "b.obj", "--metric", "point-to-point", "--json"], d.path()));
+    let m = &r["target_from_source"];
+    for (k, want) in [(0, 0.02), (1, -0.01), (2, 0.015)] {
+        let got = m[k][3].as_f64().unwrap();
+        assert!((got - want).abs() < 1e-6, "translation {k}: {got} vs {want}");
+    }
+    let o = motif(&["--quiet", "demo", "--out", "demo", "--json", "demo.json"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rep: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.path().join("demo.json")).unwrap()).unwrap();
+    assert_eq!(rep["steps"].as_array().unwrap().len(), 6);
+    assert!(d.path().join("demo/gear_curvature.ply").exists());
+}
