@@ -8,7 +8,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 /// Structure-aware 3D content creation: find symmetries, repeated building blocks and dominant
 /// offsets in meshes and scans, and use them to deform and resize models.
 #[derive(Debug, Parser)]
-#[command(name = "motif", version, about, propagate_version = true, arg_required_else_help = true)]
+#[command(name = "motif", version, propagate_version = true, arg_required_else_help = true)]
 pub struct Cli {
     #[command(flatten)]
     pub global: GlobalArgs,

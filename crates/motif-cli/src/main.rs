@@ -21,7 +21,7 @@ fn main() -> ExitCode {
     match commands::run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("error: {err:#}");
+            eprintln!("error: {}", output::describe(&err));
             ExitCode::from(output::exit_code(&err))
         }
     }

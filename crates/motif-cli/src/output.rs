@@ -36,6 +36,23 @@ pub fn exit_code(err: &anyhow::Error) -> u8 {
     1
 }
 
+/// The error and its causes on one line, skipping causes whose text the message already shows
+/// (library errors often print their source inline).
+pub fn describe(err: &anyhow::Error) -> String {
+    let mut msg = String::new();
+    for cause in err.chain() {
+        let text = cause.to_string();
+        if msg.contains(&text) {
+            continue;
+        }
+        if !msg.is_empty() {
+            msg.push_str(": ");
+        }
+        msg.push_str(&text);
+    }
+    msg
+}
+
 /// Refuses to write `output` when it is one of the `inputs` (same file after resolving links),
 /// unless `force`. Outputs that merely exist are replaced, as `cp` does.
 pub fn check_output(output: &Path, inputs: &[&Path], force: bool) -> anyhow::Result<()> {

@@ -248,3 +248,26 @@ fn align_recovers_a_known_motion_and_demo_runs() {
     assert_eq!(rep["steps"].as_array().unwrap().len(), 6);
     assert!(d.path().join("demo/gear_curvature.ply").exists());
 }
+
+#[test]
+fn every_bad_file_in_the_corpus_exits_2_with_a_named_error() {
+    let corpus = Path::new(env!("CARGO_MANIFEST_DIR")).join("../motif-core/tests/corpus/bad");
+    let d = tmp();
+    let mut checked = 0;
+    for f in files_in(&corpus) {
+        let ext = f.extension().and_then(|e| e.to_str()).unwrap_or("");
+        if !["obj", "ply", "off", "stl", "glb", "gltf"].contains(&ext) {
+            continue;
+        }
+        let out = d.path().join("out.ply");
+        let o = motif(&["convert", f.to_str().unwrap(), out.to_str().unwrap()], d.path());
+        let e = stderr(&o);
+        let name = f.file_name().unwrap().to_string_lossy().into_owned();
+        assert_eq!(o.status.code(), Some(2), "{name}: {e}");
+        assert!(e.starts_with("error: ") && e.contains(&name), "{name}: {e}");
+        assert!(!e.contains("panicked"), "{name}: {e}");
+        assert!(!out.exists(), "{name}: no output on failure");
+        checked += 1;
+    }
+    assert!(checked >= 40, "the corpus has {checked} files");
+}
