@@ -21,6 +21,16 @@ impl Bar {
     }
 }
 
+impl Bar {
+    /// Runs `f` under a spinner labelled `stage` (for library steps that report no progress).
+    pub fn spin<T>(&self, stage: &str, f: impl FnOnce() -> T) -> T {
+        self.start(stage, 0);
+        let out = f();
+        self.finish();
+        out
+    }
+}
+
 impl Progress for Bar {
     fn start(&self, stage: &str, total: u64) {
         if !self.visible {
@@ -40,6 +50,9 @@ impl Progress for Bar {
             pb.set_style(s.progress_chars("=> "));
         }
         pb.set_message(stage.to_string());
+        if total == 0 {
+            pb.enable_steady_tick(std::time::Duration::from_millis(120));
+        }
         if let Ok(mut g) = self.bar.lock() {
             if let Some(old) = g.replace(pb) {
                 old.finish_and_clear();

@@ -58,13 +58,20 @@ pub fn run(a: CurvatureArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     };
     let options = CurvatureOptions { neighbourhood, ..Default::default() };
     let t = Instant::now();
-    let pc: Vec<PrincipalCurvature> = if model.is_mesh() {
-        let mesh =
-            TriMesh { positions: model.vertices.positions.clone(), triangles: model.triangles.clone() };
-        principal_curvatures_mesh(&mesh, &options)?
-    } else {
-        principal_curvatures_points(&model.vertices.positions, model.vertices.normals.as_deref(), &options)?
-    };
+    let bar = crate::progress::Bar::new(g.quiet);
+    let pc: Vec<PrincipalCurvature> = bar.spin("curvature", || {
+        if model.is_mesh() {
+            let mesh =
+                TriMesh { positions: model.vertices.positions.clone(), triangles: model.triangles.clone() };
+            principal_curvatures_mesh(&mesh, &options)
+        } else {
+            principal_curvatures_points(
+                &model.vertices.positions,
+                model.vertices.normals.as_deref(),
+                &options,
+            )
+        }
+    })?;
     let ms = ms_since(t);
     check_output(&a.output, &[&a.input], g.force)?;
     let is_csv = a.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv"));

@@ -40,7 +40,8 @@ pub fn run(a: NormalsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             .vertex_normals()
     } else {
         let opts = NormalsOptions { neighbours: a.k, orientation, ..Default::default() };
-        estimate_normals(&model.vertices.positions, &opts)?
+        crate::progress::Bar::new(g.quiet)
+            .spin("normals", || estimate_normals(&model.vertices.positions, &opts))?
     };
     model.vertices.normals = Some(normals);
     let ms = ms_since(t);

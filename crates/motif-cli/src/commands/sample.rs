@@ -37,7 +37,8 @@ pub fn run(a: SampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let model = super::read_model(&a.input)?;
     let poisson = a.poisson || a.radius.is_some();
     let t = Instant::now();
-    let (cloud, method, radius) = if !poisson {
+    let bar = crate::progress::Bar::new(g.quiet);
+    let (cloud, method, radius) = bar.spin("sampling", || -> anyhow::Result<_> { Ok(if !poisson {
         let n = a.count.unwrap_or(0);
         if !model.is_mesh() {
             return Err(bad_input(format!(
@@ -64,7 +65,7 @@ pub fn run(a: SampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             let idx = s.candidate_indices();
             (model.vertices.select(&idx), "Poisson-disc subset of the cloud", Some(s.radius))
         }
-    };
+    })})?;
     let ms = ms_since(t);
     let samples = cloud.len();
     super::write_model(
