@@ -7,9 +7,9 @@
 //! baseline (4.5). It depends on `motif-core` only.
 //!
 //! Implemented so far, the MRF machinery of section 4.2.2:
-//! - [`maxflow`]: Boykov–Kolmogorov max-flow / min-cut with search-tree reuse;
-//! - [`alpha_expansion`]: alpha-expansion over arbitrary graphs with per-edge pairwise callbacks;
-//! - [`mrf_grid`]: the shared `mrf_grid_v1` problem format (load, validate, solve, generate).
+//! - [`mod@maxflow`]: Boykov–Kolmogorov max-flow / min-cut with search-tree reuse;
+//! - [`mod@alpha_expansion`]: alpha-expansion over arbitrary graphs with per-edge pairwise callbacks;
+//! - [`mod@mrf_grid`]: the shared `mrf_grid_v1` problem format (load, validate, solve, generate).
 
 #![warn(missing_docs)]
 

@@ -12,7 +12,7 @@
 //! - neighbours: 6-connectivity (offsets (1,0,0), (0,1,0), (0,0,1)) or 26-connectivity (the 13
 //!   lexicographically positive offsets in {−1,0,1}³), each unordered pair once, ordered (lower
 //!   site index, higher site index) when V is read;
-//! - E = Σ_p unary[p·L + x_p] + edge_weight · Σ_{pairs {p,q}} V[x_p][x_q].
+//! - E = Σ_p `unary[p·L + x_p]` + edge_weight · Σ_{pairs {p,q}} `V[x_p][x_q]`.
 //!
 //! Energies are exact 64-bit integers; loading rejects problems whose energy could overflow.
 
@@ -110,7 +110,7 @@ pub struct GridProblem {
     pub edge_weight: i64,
     /// Unary costs, `#sites × L`, `unary[p·L + l]`.
     pub unary: Vec<i64>,
-    /// Pairwise costs V, L × L row-major: `pairwise[a·L + b]` = V[a][b].
+    /// Pairwise costs V, L × L row-major: `pairwise[a·L + b]` = `V[a][b]`.
     pub pairwise: Vec<i64>,
     /// The cost that marks a forbidden label (informational; solved as a finite cost).
     pub invalid_cost: i64,
