@@ -59,9 +59,10 @@ pub enum LabelOrder {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct AlphaExpansionOptions {
-    /// Maximum number of cycles (one expansion move per label each). Default 100: alpha-expansion
-    /// typically converges in 2–6 cycles, so the limit only bounds pathological runs (GCO's
-    /// `expansion()` runs until convergence).
+    /// Maximum number of cycles (one expansion move per label each) of the graph-cut
+    /// optimisation of thesis eq. 4.3 (section 4.2.2). Default 100: alpha-expansion typically
+    /// converges in 2–8 cycles, so the limit only bounds pathological runs (GCO's `expansion()`
+    /// runs until convergence). 0 returns the initial labelling.
     pub max_cycles: usize,
     /// Order of the labels within a cycle. Default [`LabelOrder::Sequential`].
     pub label_order: LabelOrder,
@@ -510,7 +511,13 @@ impl<C: Capacity> AlphaExpansion<C> {
             if switch.is_infinite() && switch > C::ZERO {
                 continue; // α is forbidden at p
             }
-            let switch = energy.unary_clamped(p, a, hard)?;
+            if switch.is_nan() || switch.is_infinite() {
+                return Err(Error::NonFiniteCost {
+                    term: "unary",
+                    value: format!("{switch:?}"),
+                    location: format!("site {p}, label {a}"),
+                });
+            }
             let keep = energy.unary_clamped(p, l as usize, hard)?;
             self.var_of[p] = self.site_of.len() as u32;
             self.site_of.push(p as u32);

@@ -468,8 +468,10 @@ impl GridProblem {
     /// The energy of `labels` with the format's formula.
     ///
     /// # Errors
-    /// [`Error::InvalidEnergy`] when `labels` has the wrong length or a label out of range.
+    /// [`Error::Field`] for an invalid problem, [`Error::InvalidEnergy`] when `labels` has the
+    /// wrong length or a label out of range.
     pub fn energy(&self, labels: &[u32]) -> Result<i64> {
+        self.validate()?;
         self.energy_with_edges(labels, &self.edges())
     }
 
