@@ -2,7 +2,7 @@
 //! Run: `cargo bench -p motif-retarget --bench mrf -- --warm-up-time 1 --measurement-time 5`.
 //!
 //! - `grid/*`: `mrf_grid_v1` problems solved from the argmin start: the shipped 10³ example and
-//!   generated ones (`generate_grid`, seed 1). Peers' GCO times on this machine's kind, same
+//!   generated ones (`generate_grid`, seed 1), with full and with adaptive cycles. Peers' GCO times on this machine's kind, same
 //!   generator: 11.7 ms (10³, 8 labels, 6-conn.), 61 ms (26-conn.), 469 ms (20³, 30 labels,
 //!   6-conn.), 4.7 s (26-conn.). 30³ × 64 labels is timed by `examples/mrf_timing.rs`.
 //! - `retarget_callback/*`: the thesis's interactive size, ~1000 voxels × 30 offset labels on a
@@ -15,7 +15,7 @@ use std::hint::black_box;
 use std::path::PathBuf;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use motif_retarget::alpha_expansion::{AlphaExpansion, AlphaExpansionOptions, MrfEnergy};
+use motif_retarget::alpha_expansion::{AlphaExpansion, AlphaExpansionOptions, CycleStrategy, MrfEnergy};
 use motif_retarget::maxflow::Graph;
 use motif_retarget::mrf_grid::{Connectivity, GridProblem, generate_grid};
 use rand::{Rng, SeedableRng};
@@ -43,23 +43,27 @@ fn grid(c: &mut Criterion) {
         let name = format!("gen_{0}x{0}x{0}_L{1}_c{2}", dims[0], labels, conn.number());
         cases.push((name, generate_grid(dims, labels, conn, 1), samples));
     }
-    let options = AlphaExpansionOptions::default();
+    let full = AlphaExpansionOptions::default();
+    let adaptive = AlphaExpansionOptions { cycles: CycleStrategy::Adaptive, ..Default::default() };
     let mut g = c.benchmark_group("grid");
     for (name, problem, samples) in &cases {
-        g.sample_size(*samples);
-        let printed = std::cell::Cell::new(false);
-        g.bench_function(name.as_str(), |b| {
-            if !printed.replace(true) {
-                match problem.solve(&options) {
-                    Ok(s) => eprintln!(
-                        "grid/{name}: initial energy {}, final energy {}, {} cycles, {} moves",
-                        s.initial_energy, s.energy, s.cycles, s.moves
-                    ),
-                    Err(e) => eprintln!("grid/{name}: {e}"),
+        for (strategy, options) in [("full", &full), ("adaptive", &adaptive)] {
+            let name = format!("{name}_{strategy}");
+            g.sample_size(*samples);
+            let printed = std::cell::Cell::new(false);
+            g.bench_function(name.as_str(), |b| {
+                if !printed.replace(true) {
+                    match problem.solve(options) {
+                        Ok(s) => eprintln!(
+                            "grid/{name}: initial energy {}, final energy {}, {} cycles, {} moves",
+                            s.initial_energy, s.energy, s.cycles, s.moves
+                        ),
+                        Err(e) => eprintln!("grid/{name}: {e}"),
+                    }
                 }
-            }
-            b.iter(|| problem.solve(black_box(&options)))
-        });
+                b.iter(|| problem.solve(black_box(options)))
+            });
+        }
     }
     g.finish();
 }

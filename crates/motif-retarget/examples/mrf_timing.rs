@@ -5,11 +5,12 @@
 //! - `--sizes small|all` (default `small`: up to 20³; `all` adds 30³ with 64 labels);
 //! - `--repeat N` (default 3): solves per problem, the median is reported;
 //! - `--write DIR`: also writes every generated problem as `mrf_grid_v1` JSON into DIR;
-//! - `--only TEXT`: only the problems whose name contains TEXT (e.g. `20³ L30 c6`).
+//! - `--only TEXT`: only the problems whose name contains TEXT (e.g. `20³ L30 c6`);
+//! - `--cycles full|adaptive` (default `full`): the alpha-expansion cycle strategy.
 
 use std::path::PathBuf;
 
-use motif_retarget::alpha_expansion::AlphaExpansionOptions;
+use motif_retarget::alpha_expansion::{AlphaExpansionOptions, CycleStrategy};
 use motif_retarget::mrf_grid::{Connectivity, GridProblem, generate_grid};
 
 struct Case {
@@ -41,6 +42,7 @@ fn main() {
     let mut repeat = 3usize;
     let mut write: Option<PathBuf> = None;
     let mut only: Option<String> = None;
+    let mut options = AlphaExpansionOptions::default();
     let mut i = 0;
     while i < args.len() {
         match args[i].as_str() {
@@ -58,6 +60,12 @@ fn main() {
             }
             "--only" => {
                 only = args.get(i + 1).cloned();
+                i += 1;
+            }
+            "--cycles" => {
+                if args.get(i + 1).map(String::as_str) == Some("adaptive") {
+                    options.cycles = CycleStrategy::Adaptive;
+                }
                 i += 1;
             }
             "--bench" => {}
@@ -118,7 +126,7 @@ fn main() {
         let mut last = None;
         for _ in 0..repeat {
             let c0 = thread_cpu_ns();
-            let s = case.problem.solve(&AlphaExpansionOptions::default()).expect("valid problem");
+            let s = case.problem.solve(&options).expect("valid problem");
             if let (Some(a), Some(b)) = (c0, thread_cpu_ns()) {
                 cpu.push((b - a) as f64 / 1e6);
             }

@@ -55,6 +55,21 @@ pub enum LabelOrder {
     },
 }
 
+/// Which labels a cycle tries.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum CycleStrategy {
+    /// Every cycle tries every label (BVZ 2001).
+    #[default]
+    Full,
+    /// After a cycle that lowered the energy, the next cycle tries only the labels whose move
+    /// succeeded in it; when such a cycle finds nothing, a full cycle follows, and the solve ends
+    /// only after a full cycle without improvement, so the result is still a local minimum of
+    /// every expansion move. A third fewer moves than [`CycleStrategy::Full`] on the generated
+    /// benchmark grids (same final labellings there), but it may also take a longer path to a
+    /// different local minimum (more moves on the retargeting-shaped benchmark).
+    Adaptive,
+}
+
 /// Options of [`alpha_expansion`] and [`AlphaExpansion::solve`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -66,6 +81,8 @@ pub struct AlphaExpansionOptions {
     pub max_cycles: usize,
     /// Order of the labels within a cycle. Default [`LabelOrder::Sequential`].
     pub label_order: LabelOrder,
+    /// Which labels each cycle tries. Default [`CycleStrategy::Full`].
+    pub cycles: CycleStrategy,
     /// Finite value that replaces +∞ costs inside the moves (floating-point energies only).
     /// It must exceed the largest finite energy of a labelling you care about; keep it well below
     /// 1e15 so that f64 sums still resolve the finite costs. Default 1e9 (the retargeting energy
@@ -76,7 +93,12 @@ pub struct AlphaExpansionOptions {
 
 impl Default for AlphaExpansionOptions {
     fn default() -> Self {
-        AlphaExpansionOptions { max_cycles: 100, label_order: LabelOrder::Sequential, infinite_cost: 1e9 }
+        AlphaExpansionOptions {
+            max_cycles: 100,
+            label_order: LabelOrder::Sequential,
+            cycles: CycleStrategy::Full,
+            infinite_cost: 1e9,
+        }
     }
 }
 
@@ -99,7 +121,8 @@ pub struct AlphaExpansionResult<C> {
     pub energy: C,
     /// Energy of the initial labelling, from the callbacks.
     pub initial_energy: C,
-    /// Number of cycles run (the last one, when converged, only confirms that no move helps).
+    /// Number of cycles run, full or adaptive (the last one, when converged, is a full cycle that
+    /// confirms that no move helps).
     pub cycles: usize,
     /// Energy after each cycle (with +∞ costs replaced by the `infinite_cost` option).
     pub cycle_energies: Vec<C>,
@@ -408,14 +431,22 @@ impl<C: Capacity> AlphaExpansion<C> {
         let mut cycle_energies = Vec::new();
         let (mut cycles, mut moves, mut accepted_moves, mut truncated_terms) = (0, 0, 0, 0);
         let mut termination = Termination::MaxCycles;
+        // Adaptive cycles: labels whose move succeeded in the last cycle are retried first,
+        // and a full cycle confirms convergence.
+        let mut succeeded: Vec<bool> = vec![true; num_labels];
+        let mut succeeded_now: Vec<bool> = vec![false; num_labels];
+        let mut full_cycle = true;
         while cycles < options.max_cycles {
             cycles += 1;
             if let Some(rng) = rng.as_mut() {
                 order.shuffle(rng);
             }
             let mut improved = false;
+            succeeded_now.fill(false);
             for &alpha in &order {
-                if known_optimal[alpha as usize] == Some(accepted_moves) {
+                if known_optimal[alpha as usize] == Some(accepted_moves)
+                    || (!full_cycle && !succeeded[alpha as usize])
+                {
                     continue;
                 }
                 moves += 1;
@@ -426,6 +457,7 @@ impl<C: Capacity> AlphaExpansion<C> {
                         current = e;
                         accepted_moves += 1;
                         improved = true;
+                        succeeded_now[alpha as usize] = true;
                         known_optimal[alpha as usize] =
                             if outcome.truncated == 0 { Some(accepted_moves) } else { None };
                     }
@@ -434,9 +466,15 @@ impl<C: Capacity> AlphaExpansion<C> {
             }
             cycle_energies.push(current);
             if !improved {
+                if !full_cycle {
+                    full_cycle = true;
+                    continue;
+                }
                 termination = Termination::Converged;
                 break;
             }
+            full_cycle = options.cycles == CycleStrategy::Full;
+            std::mem::swap(&mut succeeded, &mut succeeded_now);
         }
         let final_energy = energy_of(energy, &labels)?;
         Ok(AlphaExpansionResult {

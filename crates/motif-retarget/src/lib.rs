@@ -19,8 +19,8 @@ pub mod maxflow;
 pub mod mrf_grid;
 
 pub use alpha_expansion::{
-    AlphaExpansion, AlphaExpansionOptions, AlphaExpansionResult, LabelOrder, MrfEnergy, Termination,
-    alpha_expansion, energy_of,
+    AlphaExpansion, AlphaExpansionOptions, AlphaExpansionResult, CycleStrategy, LabelOrder, MrfEnergy,
+    Termination, alpha_expansion, energy_of,
 };
 pub use error::{Error, Result};
 pub use maxflow::{Capacity, Graph, Segment};

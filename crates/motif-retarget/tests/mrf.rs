@@ -2,8 +2,8 @@
 //! alpha-expansion against brute force, and the `mrf_grid_v1` format.
 
 use motif_retarget::alpha_expansion::{
-    AlphaExpansion, AlphaExpansionOptions, LabelOrder, MrfEnergy, Termination, alpha_expansion, dense_unary,
-    energy_of,
+    AlphaExpansion, AlphaExpansionOptions, CycleStrategy, LabelOrder, MrfEnergy, Termination,
+    alpha_expansion, dense_unary, energy_of,
 };
 use motif_retarget::maxflow::{Graph, Segment};
 use motif_retarget::mrf_grid::{Connectivity, GridProblem, InitLabels, generate_grid, solve_grid_file};
@@ -431,7 +431,8 @@ fn alpha_expansion_brute_force() {
         let t = Tiny::random(&mut rng, kind, n, labels);
         let init: Vec<u32> = (0..n).map(|_| rng.random_range(0..labels as u32)).collect();
         let order = if seed % 2 == 0 { LabelOrder::Sequential } else { LabelOrder::Random { seed } };
-        let options = AlphaExpansionOptions { label_order: order, ..Default::default() };
+        let cycles = if seed % 4 < 2 { CycleStrategy::Full } else { CycleStrategy::Adaptive };
+        let options = AlphaExpansionOptions { label_order: order, cycles, ..Default::default() };
         let r = alpha_expansion(&t.energy(), &init, &options).unwrap();
         let what = format!("seed {seed} {kind:?} n {n} L {labels}");
 
