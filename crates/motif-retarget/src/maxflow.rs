@@ -390,8 +390,11 @@ impl<C: Capacity> Graph<C> {
 
     /// Like [`Graph::maxflow`], but continues from the search trees of the previous run, repairing
     /// them only around the nodes whose terminal capacities changed since (BK's
-    /// `reuse_trees = true`). Much faster than a fresh run when few capacities changed. Falls back
-    /// to a fresh run before the first max-flow or after edges were added.
+    /// `reuse_trees = true`). Falls back to a fresh run before the first max-flow or after edges
+    /// were added. Both variants keep the flow already pushed; reusing the trees pays when the
+    /// changes are few and local. On graphs whose old trees are deep (e.g. random capacities on a
+    /// large grid) a fresh run, whose trees grow from every terminal at once, can be faster: see
+    /// the `maxflow/*reuse*` benchmarks.
     pub fn maxflow_reuse(&mut self) -> C {
         self.run(true)
     }
