@@ -284,12 +284,18 @@ impl GridProblem {
                 format!("has {} rows, expected num_labels = {num_labels}", rows.len()),
             ));
         }
-        let mut pairwise = Vec::with_capacity(rows.len() * rows.len());
+        // Check every row's length before allocating L² entries: they are then all in the JSON.
         for (a, row) in rows.iter().enumerate() {
-            let row = row.as_array().filter(|r| r.len() == num_labels).ok_or_else(|| {
-                Error::field(format!("pairwise[{a}]"), format!("expected {num_labels} integers"))
-            })?;
-            for (b, v) in row.iter().enumerate() {
+            if row.as_array().is_none_or(|r| r.len() != num_labels) {
+                return Err(Error::field(
+                    format!("pairwise[{a}]"),
+                    format!("expected {num_labels} integers"),
+                ));
+            }
+        }
+        let mut pairwise = Vec::with_capacity(num_labels * num_labels);
+        for (a, row) in rows.iter().enumerate() {
+            for (b, v) in row.as_array().into_iter().flatten().enumerate() {
                 pairwise.push(as_int(v, || format!("pairwise[{a}][{b}]"))?);
             }
         }
@@ -404,10 +410,10 @@ impl GridProblem {
         // Worst-case |energy| (and every partial sum the solver forms) must fit comfortably.
         let max_unary = self.unary.iter().map(|x| x.unsigned_abs() as u128).max().unwrap_or(0);
         let max_pair = self.pairwise.iter().map(|x| x.unsigned_abs() as u128).max().unwrap_or(0);
-        let bound = max_unary * num_sites as u128 * 2
-            + 4 * self.edge_weight.unsigned_abs() as u128
-                * max_pair
-                * (num_sites as u128 * self.connectivity.offsets().len() as u128);
+        let pairs = num_sites as u128 * self.connectivity.offsets().len() as u128;
+        let bound = max_unary.saturating_mul(2 * num_sites as u128).saturating_add(
+            (4 * self.edge_weight.unsigned_abs() as u128).saturating_mul(max_pair).saturating_mul(pairs),
+        );
         if bound > (1u128 << 62) {
             return Err(Error::field(
                 "unary",

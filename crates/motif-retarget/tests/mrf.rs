@@ -816,6 +816,17 @@ fn grid_rejects_bad_files() {
             "unary",
         ),
         (r#"{"format":"mrf_grid_v1","dims":[1,1,2],"num_labels":2,"connectivity":6}"#, "unary"),
+        (
+            r#"{"format":"mrf_grid_v1","dims":[1,1,2],"num_labels":2,"connectivity":6,"unary":[0,1,2,3],
+               "pairwise":[[0,9223372036854775807],[1,0]],"edge_weight":9223372036854775807}"#,
+            "unary",
+        ),
+        // L² is never allocated before the rows are seen to hold L² numbers.
+        (
+            r#"{"format":"mrf_grid_v1","dims":[1,1,1],"num_labels":3,"connectivity":6,"unary":[0,1,2],
+               "pairwise":[[],[],[]]}"#,
+            "pairwise[0]",
+        ),
     ];
     for (json, field) in cases {
         assert_eq!(field_error(json), *field, "{json}");
