@@ -1,0 +1,766 @@
+//! Multi-label MRF energy minimisation by alpha-expansion (thesis 4.2.2, eq. 4.3).
+//!
+//! Minimises E(x) = Σ_p D_p(x_p) + Σ_{(p,q)} w_pq · V_pq(x_p, x_q) over labellings
+//! x ∈ {0..L}^N of an arbitrary graph (an edge list), following Y. Boykov, O. Veksler and
+//! R. Zabih, "Fast approximate energy minimization via graph cuts", IEEE TPAMI 23(11), 2001.
+//! Each expansion move lets every site either keep its label or switch to one label α; the best
+//! move is a minimum cut (V. Kolmogorov and R. Zabih, "What energy functions can be minimized via
+//! graph cuts?", TPAMI 26(2), 2004), computed with the [`crate::maxflow`] Boykov–Kolmogorov
+//! solver. Moves cycle over all labels until a whole cycle lowers the energy no further; a move is
+//! applied only when it lowers the energy, and among equally good cuts the one switching the most
+//! sites to α is taken (as in BVZ and GCO).
+//!
+//! Pairwise costs come from a callback `V(p, q, lp, lq)` evaluated per edge, so they may depend
+//! on the sites (the retargeting term of eq. 4.4 does). A move's binary term
+//! (A, B, C, D) = (V(x_p, x_q), V(x_p, α), V(α, x_q), V(α, α)) is representable when
+//! A + D ≤ B + C, which holds for every metric V. When a term violates it, the move uses a
+//! truncated term (Rother, Kumar, Kolmogorov, Blake, "Digital tapestry", CVPR 2005): B is raised
+//! to A + D − C, an upper bound that leaves the current labelling's energy unchanged, so the true
+//! energy still never increases; such a move is scored with the true energy and applied only if
+//! that drops. Violations are counted in [`AlphaExpansionResult::truncated_terms`]. Each term
+//! becomes arcs in both directions where possible (a term that only penalises disagreement puts
+//! no flow through the terminals).
+//!
+//! Guarantees (BVZ 2001, metric V): the result is a local minimum with respect to every single
+//! expansion move, within a factor 2·c of the global minimum, c = max_{a≠b} V(a,b) /
+//! min_{a≠b} V(a,b) (2 for Potts); with two labels and a submodular V it is the global minimum.
+//!
+//! Costs: a unary +∞ (floating-point energies) forbids the label at that site: moves never switch
+//! a site to a forbidden label, and such sites stay out of the move's graph (which keeps moves
+//! small when few sites can take α, as with the offset labels of 4.2.2). Other +∞ costs are
+//! replaced inside the moves by [`AlphaExpansionOptions::infinite_cost`]; NaN and −∞ are errors.
+//! The reported energies use the callbacks' own values (so they are +∞ for an infeasible
+//! labelling).
+
+use std::time::Instant;
+
+use rand::SeedableRng;
+use rand::seq::SliceRandom;
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::maxflow::{Capacity, Graph, Segment};
+
+/// The order in which labels are tried within a cycle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum LabelOrder {
+    /// 0, 1, …, L−1 in every cycle (GCO's default).
+    #[default]
+    Sequential,
+    /// A fresh random permutation in every cycle, from a ChaCha8 generator seeded with `seed`
+    /// (reproducible).
+    Random {
+        /// Seed of the permutation generator.
+        seed: u64,
+    },
+}
+
+/// Which labels a cycle tries.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum CycleStrategy {
+    /// Every cycle tries every label (BVZ 2001).
+    #[default]
+    Full,
+    /// After a cycle that lowered the energy, the next cycle tries only the labels whose move
+    /// succeeded in it; when such a cycle finds nothing, a full cycle follows, and the solve ends
+    /// only after a full cycle without improvement, so the result is still a local minimum of
+    /// every expansion move. A third fewer moves than [`CycleStrategy::Full`] on the generated
+    /// benchmark grids (same final labellings there), but it may also take a longer path to a
+    /// different local minimum (more moves on the retargeting-shaped benchmark).
+    Adaptive,
+}
+
+/// Options of [`alpha_expansion`] and [`AlphaExpansion::solve`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct AlphaExpansionOptions {
+    /// Maximum number of cycles (one expansion move per label each) of the graph-cut
+    /// optimisation of thesis eq. 4.3 (section 4.2.2). Default 100: alpha-expansion typically
+    /// converges in 2–8 cycles, so the limit only bounds pathological runs (GCO's `expansion()`
+    /// runs until convergence). 0 returns the initial labelling.
+    pub max_cycles: usize,
+    /// Order of the labels within a cycle. Default [`LabelOrder::Sequential`].
+    pub label_order: LabelOrder,
+    /// Which labels each cycle tries. Default [`CycleStrategy::Full`].
+    pub cycles: CycleStrategy,
+    /// Finite value that replaces +∞ costs inside the moves (floating-point energies only).
+    /// It must exceed the largest finite energy of a labelling you care about; keep it well below
+    /// 1e15 so that f64 sums still resolve the finite costs. Default 1e9 (the retargeting energy
+    /// of eq. 4.3 is a sum of at most ~10⁴ descriptor distances). Integer energies never hold
+    /// infinities and ignore this field.
+    pub infinite_cost: f64,
+}
+
+impl Default for AlphaExpansionOptions {
+    fn default() -> Self {
+        AlphaExpansionOptions {
+            max_cycles: 100,
+            label_order: LabelOrder::Sequential,
+            cycles: CycleStrategy::Full,
+            infinite_cost: 1e9,
+        }
+    }
+}
+
+/// Why the expansion loop stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Termination {
+    /// A whole cycle lowered the energy no further: the labelling is a local minimum with respect
+    /// to every expansion move.
+    Converged,
+    /// [`AlphaExpansionOptions::max_cycles`] cycles were run.
+    MaxCycles,
+}
+
+/// The outcome of alpha-expansion.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AlphaExpansionResult<C> {
+    /// Final label of every site (`#sites`).
+    pub labels: Vec<u32>,
+    /// Energy of `labels`, recomputed from the callbacks.
+    pub energy: C,
+    /// Energy of the initial labelling, from the callbacks.
+    pub initial_energy: C,
+    /// Number of cycles run, full or adaptive (the last one, when converged, is a full cycle that
+    /// confirms that no move helps).
+    pub cycles: usize,
+    /// Energy after each cycle (with +∞ costs replaced by the `infinite_cost` option).
+    pub cycle_energies: Vec<C>,
+    /// Number of expansion moves solved by a graph cut (moves known to fail are skipped).
+    pub moves: usize,
+    /// Number of moves that lowered the energy.
+    pub accepted_moves: usize,
+    /// Number of pairwise move terms that violated A + D ≤ B + C and were truncated, summed over
+    /// all moves (0 for metric pairwise costs).
+    pub truncated_terms: usize,
+    /// Why the loop stopped.
+    pub termination: Termination,
+    /// Wall-clock time of the solve, in milliseconds.
+    pub elapsed_ms: f64,
+}
+
+/// A multi-label energy over a graph: sites `0..num_sites`, labels `0..num_labels`, unary costs
+/// `unary(p, l)` = D_p(l), pairwise costs `pairwise(p, q, lp, lq)` = V_pq(lp, lq) for every
+/// edge `[p, q]` of `edges`, optionally scaled by per-edge weights w_pq.
+///
+/// The callbacks are called many times per move; keep them cheap (precompute tables).
+#[derive(Debug, Clone)]
+pub struct MrfEnergy<'a, C, D, V> {
+    /// Number of sites N.
+    pub num_sites: usize,
+    /// Number of labels L.
+    pub num_labels: usize,
+    /// Neighbour pairs `[p, q]` (p ≠ q, each < N); a pair listed twice counts twice.
+    pub edges: &'a [[u32; 2]],
+    /// Optional weights w_pq ≥ 0, one per edge (`edges.len()`); `None` means all 1.
+    pub edge_weights: Option<&'a [C]>,
+    /// D(p, l): the cost of giving site p label l.
+    pub unary: D,
+    /// V(p, q, lp, lq): the cost of labels (lp, lq) on edge [p, q].
+    pub pairwise: V,
+}
+
+impl<'a, C, D, V> MrfEnergy<'a, C, D, V>
+where
+    C: Capacity,
+    D: Fn(usize, usize) -> C,
+    V: Fn(usize, usize, usize, usize) -> C,
+{
+    /// An energy with unit edge weights.
+    pub fn new(num_sites: usize, num_labels: usize, edges: &'a [[u32; 2]], unary: D, pairwise: V) -> Self {
+        MrfEnergy { num_sites, num_labels, edges, edge_weights: None, unary, pairwise }
+    }
+
+    /// The same energy with per-edge weights w_pq.
+    pub fn with_edge_weights(mut self, weights: &'a [C]) -> Self {
+        self.edge_weights = Some(weights);
+        self
+    }
+
+    #[inline]
+    fn weight(&self, e: usize) -> C {
+        match self.edge_weights {
+            Some(w) => w[e],
+            None => C::ONE,
+        }
+    }
+
+    /// Checks sizes, indices and weights.
+    fn validate(&self) -> Result<()> {
+        if self.num_labels == 0 {
+            return Err(Error::energy("num_labels is 0; an MRF needs at least one label"));
+        }
+        if self.num_labels > u32::MAX as usize {
+            return Err(Error::energy(format!("num_labels {} exceeds u32", self.num_labels)));
+        }
+        if self.num_sites >= (u32::MAX - 3) as usize {
+            return Err(Error::energy(format!("num_sites {} exceeds the graph limit", self.num_sites)));
+        }
+        if 2 * self.edges.len() >= (u32::MAX - 3) as usize {
+            return Err(Error::energy(format!("{} edges exceed the graph limit", self.edges.len())));
+        }
+        for (k, &[p, q]) in self.edges.iter().enumerate() {
+            if p as usize >= self.num_sites || q as usize >= self.num_sites {
+                return Err(Error::energy(format!(
+                    "edge {k} = [{p}, {q}] names a site outside 0..{}",
+                    self.num_sites
+                )));
+            }
+            if p == q {
+                return Err(Error::energy(format!("edge {k} = [{p}, {q}] joins a site to itself")));
+            }
+        }
+        if let Some(w) = self.edge_weights {
+            if w.len() != self.edges.len() {
+                return Err(Error::energy(format!(
+                    "{} edge weights for {} edges",
+                    w.len(),
+                    self.edges.len()
+                )));
+            }
+            if let Some(k) = w.iter().position(|&x| x.is_nan() || x < C::ZERO || x.is_infinite()) {
+                return Err(Error::energy(format!(
+                    "edge weight {k} is {:?}; weights must be finite and >= 0",
+                    w[k]
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    fn validate_labels(&self, labels: &[u32], what: &str) -> Result<()> {
+        if labels.len() != self.num_sites {
+            return Err(Error::energy(format!(
+                "{what} has {} labels for {} sites",
+                labels.len(),
+                self.num_sites
+            )));
+        }
+        if let Some(p) = labels.iter().position(|&l| l as usize >= self.num_labels) {
+            return Err(Error::energy(format!(
+                "{what}: site {p} has label {} outside 0..{}",
+                labels[p], self.num_labels
+            )));
+        }
+        Ok(())
+    }
+
+    /// D(p, l) with +∞ replaced by `hard`; NaN and −∞ are errors.
+    #[inline]
+    fn unary_clamped(&self, p: usize, l: usize, hard: C) -> Result<C> {
+        let v = (self.unary)(p, l);
+        if v.is_nan() || v.is_infinite() {
+            if v.is_infinite() && v > C::ZERO {
+                return Ok(hard);
+            }
+            return Err(Error::NonFiniteCost {
+                term: "unary",
+                value: format!("{v:?}"),
+                location: format!("site {p}, label {l}"),
+            });
+        }
+        Ok(v)
+    }
+
+    /// w_pq · V(p, q, lp, lq) with +∞ replaced by `hard`; NaN and −∞ are errors.
+    #[inline]
+    fn pairwise_clamped(&self, e: usize, p: usize, q: usize, lp: usize, lq: usize, hard: C) -> Result<C> {
+        let mut v = (self.pairwise)(p, q, lp, lq);
+        if v.is_nan() || v.is_infinite() {
+            if v.is_infinite() && v > C::ZERO {
+                v = hard;
+            } else {
+                return Err(Error::NonFiniteCost {
+                    term: "pairwise",
+                    value: format!("{v:?}"),
+                    location: format!("edge {e} = [{p}, {q}], labels ({lp}, {lq})"),
+                });
+            }
+        }
+        match self.edge_weights {
+            None => Ok(v),
+            Some(w) => Ok(w[e] * v),
+        }
+    }
+
+    /// Energy with +∞ costs replaced by `hard`.
+    fn energy_clamped(&self, labels: &[u32], hard: C) -> Result<C> {
+        let mut e = C::ZERO;
+        for (p, &l) in labels.iter().enumerate() {
+            e += self.unary_clamped(p, l as usize, hard)?;
+        }
+        for (k, &[p, q]) in self.edges.iter().enumerate() {
+            let (p, q) = (p as usize, q as usize);
+            e += self.pairwise_clamped(k, p, q, labels[p] as usize, labels[q] as usize, hard)?;
+        }
+        Ok(e)
+    }
+}
+
+/// Dense unary costs as a callback: `costs[p * num_labels + l]` = D_p(l) (`#sites × L`, site
+/// major).
+pub fn dense_unary<C: Copy>(costs: &[C], num_labels: usize) -> impl Fn(usize, usize) -> C + '_ {
+    move |p, l| costs[p * num_labels + l]
+}
+
+/// The energy of `labels` (`#sites`, each < L), computed from the callbacks: +∞ costs stay +∞
+/// (a zero edge weight cancels them). Errors on size mismatches and NaN costs.
+pub fn energy_of<C, D, V>(energy: &MrfEnergy<'_, C, D, V>, labels: &[u32]) -> Result<C>
+where
+    C: Capacity,
+    D: Fn(usize, usize) -> C,
+    V: Fn(usize, usize, usize, usize) -> C,
+{
+    energy.validate()?;
+    energy.validate_labels(labels, "labelling")?;
+    let mut total = C::ZERO;
+    for (p, &l) in labels.iter().enumerate() {
+        let v = (energy.unary)(p, l as usize);
+        if v.is_nan() || (v.is_infinite() && v < C::ZERO) {
+            return Err(Error::NonFiniteCost {
+                term: "unary",
+                value: format!("{v:?}"),
+                location: format!("site {p}, label {l}"),
+            });
+        }
+        total += v;
+    }
+    for (k, &[p, q]) in energy.edges.iter().enumerate() {
+        let (lp, lq) = (labels[p as usize] as usize, labels[q as usize] as usize);
+        let v = (energy.pairwise)(p as usize, q as usize, lp, lq);
+        if v.is_nan() || (v.is_infinite() && v < C::ZERO) {
+            return Err(Error::NonFiniteCost {
+                term: "pairwise",
+                value: format!("{v:?}"),
+                location: format!("edge {k} = [{p}, {q}], labels ({lp}, {lq})"),
+            });
+        }
+        let w = energy.weight(k);
+        if w != C::ZERO {
+            total += w * v;
+        }
+    }
+    Ok(total)
+}
+
+/// What one expansion move did.
+struct MoveOutcome<C> {
+    /// The (clamped) energy after the move, when it lowered the energy.
+    accepted: Option<C>,
+    /// Truncated (non-submodular) terms in this move.
+    truncated: usize,
+}
+
+/// Reusable alpha-expansion solver: keeps the max-flow graph and scratch buffers between moves
+/// and between solves (the precompute / solve split for repeated retargeting runs).
+#[derive(Debug, Clone, Default)]
+pub struct AlphaExpansion<C: Capacity> {
+    graph: Graph<C>,
+    /// Graph node of each site in the current move, or `u32::MAX` for sites already labelled α.
+    var_of: Vec<u32>,
+    /// Site of each graph node.
+    site_of: Vec<u32>,
+    /// Accumulated unary coefficient of each graph node: cost(switch) − cost(keep).
+    tdelta: Vec<C>,
+    /// Sites a move switches to α.
+    switched: Vec<u32>,
+    /// Per site: switched by the current move.
+    is_switched: Vec<bool>,
+    /// Incident edges of each site: `incident[incident_start[p]..incident_start[p + 1]]`.
+    incident_start: Vec<u32>,
+    incident: Vec<u32>,
+}
+
+const FIXED: u32 = u32::MAX;
+
+impl<C: Capacity> AlphaExpansion<C> {
+    /// An empty solver; buffers grow on the first solve.
+    pub fn new() -> Self {
+        AlphaExpansion {
+            graph: Graph::new(0, 0),
+            var_of: Vec::new(),
+            site_of: Vec::new(),
+            tdelta: Vec::new(),
+            switched: Vec::new(),
+            is_switched: Vec::new(),
+            incident_start: Vec::new(),
+            incident: Vec::new(),
+        }
+    }
+
+    /// Runs alpha-expansion from `init` (`#sites` labels, each < L).
+    ///
+    /// # Errors
+    /// [`Error::InvalidEnergy`] for malformed energies or initial labels,
+    /// [`Error::NonFiniteCost`] when a callback returns NaN or −∞.
+    pub fn solve<D, V>(
+        &mut self,
+        energy: &MrfEnergy<'_, C, D, V>,
+        init: &[u32],
+        options: &AlphaExpansionOptions,
+    ) -> Result<AlphaExpansionResult<C>>
+    where
+        D: Fn(usize, usize) -> C,
+        V: Fn(usize, usize, usize, usize) -> C,
+    {
+        let start = Instant::now();
+        energy.validate()?;
+        energy.validate_labels(init, "initial labelling")?;
+        if options.infinite_cost.is_nan() || options.infinite_cost <= 0.0 {
+            return Err(Error::energy(format!(
+                "infinite_cost must be a positive number, got {}",
+                options.infinite_cost
+            )));
+        }
+        let hard = C::from_f64(options.infinite_cost);
+        let num_labels = energy.num_labels;
+        let initial_energy = energy_of(energy, init)?;
+        self.build_incidence(energy.num_sites, energy.edges);
+        let mut labels = init.to_vec();
+        let mut current = energy.energy_clamped(&labels, hard)?;
+
+        let mut order: Vec<u32> = (0..num_labels as u32).collect();
+        let mut rng = match options.label_order {
+            LabelOrder::Random { seed } => Some(rand_chacha::ChaCha8Rng::seed_from_u64(seed)),
+            LabelOrder::Sequential => None,
+        };
+        // `known_optimal[α] == Some(k)`: the α-move was optimal (failed, or just succeeded
+        // without truncation) when `k` moves had been accepted; while no other move is accepted
+        // it cannot lower the energy, so it is skipped.
+        let mut known_optimal: Vec<Option<usize>> = vec![None; num_labels];
+        let mut cycle_energies = Vec::new();
+        let (mut cycles, mut moves, mut accepted_moves, mut truncated_terms) = (0, 0, 0, 0);
+        let mut termination = Termination::MaxCycles;
+        // Adaptive cycles: labels whose move succeeded in the last cycle are retried first,
+        // and a full cycle confirms convergence.
+        let mut succeeded: Vec<bool> = vec![true; num_labels];
+        let mut succeeded_now: Vec<bool> = vec![false; num_labels];
+        let mut full_cycle = true;
+        while cycles < options.max_cycles {
+            cycles += 1;
+            if let Some(rng) = rng.as_mut() {
+                order.shuffle(rng);
+            }
+            let mut improved = false;
+            succeeded_now.fill(false);
+            for &alpha in &order {
+                if known_optimal[alpha as usize] == Some(accepted_moves)
+                    || (!full_cycle && !succeeded[alpha as usize])
+                {
+                    continue;
+                }
+                moves += 1;
+                let outcome = self.expand(energy, &mut labels, alpha, current, hard)?;
+                truncated_terms += outcome.truncated;
+                match outcome.accepted {
+                    Some(e) => {
+                        current = e;
+                        accepted_moves += 1;
+                        improved = true;
+                        succeeded_now[alpha as usize] = true;
+                        known_optimal[alpha as usize] =
+                            if outcome.truncated == 0 { Some(accepted_moves) } else { None };
+                    }
+                    None => known_optimal[alpha as usize] = Some(accepted_moves),
+                }
+            }
+            cycle_energies.push(current);
+            if !improved {
+                if !full_cycle {
+                    full_cycle = true;
+                    continue;
+                }
+                termination = Termination::Converged;
+                break;
+            }
+            full_cycle = options.cycles == CycleStrategy::Full;
+            std::mem::swap(&mut succeeded, &mut succeeded_now);
+        }
+        let final_energy = energy_of(energy, &labels)?;
+        Ok(AlphaExpansionResult {
+            labels,
+            energy: final_energy,
+            initial_energy,
+            cycles,
+            cycle_energies,
+            moves,
+            accepted_moves,
+            truncated_terms,
+            termination,
+            elapsed_ms: start.elapsed().as_secs_f64() * 1e3,
+        })
+    }
+
+    /// Site → incident edges, for scoring moves by their energy change.
+    fn build_incidence(&mut self, num_sites: usize, edges: &[[u32; 2]]) {
+        self.incident_start.clear();
+        self.incident_start.resize(num_sites + 1, 0);
+        for &[p, q] in edges {
+            self.incident_start[p as usize + 1] += 1;
+            self.incident_start[q as usize + 1] += 1;
+        }
+        for p in 0..num_sites {
+            self.incident_start[p + 1] += self.incident_start[p];
+        }
+        self.incident.clear();
+        self.incident.resize(2 * edges.len(), 0);
+        // Fill from the back so each site's list ends up in edge order.
+        let mut fill = self.incident_start[1..].to_vec();
+        for (k, &[p, q]) in edges.iter().enumerate().rev() {
+            for s in [p as usize, q as usize] {
+                fill[s] -= 1;
+                self.incident[fill[s] as usize] = k as u32;
+            }
+        }
+    }
+
+    /// One α-expansion move from `labels` (energy `current`, clamped). Applies it when it lowers
+    /// the energy. Among the optimal moves it takes the one that switches the most sites to α
+    /// (every node the source cannot reach in the residual graph), as BVZ and GCO do.
+    ///
+    /// Only sites that can switch become graph nodes: sites already labelled α and sites where
+    /// D(α) = +∞ (α forbidden) keep their labels, and only the edges at switchable sites are
+    /// visited. The move's energy is `current + flow − Σ sink capacities` (the all-keep cut
+    /// costs exactly the sink capacities and has energy `current`), or the exact energy change
+    /// when that is inaccurate.
+    fn expand<D, V>(
+        &mut self,
+        energy: &MrfEnergy<'_, C, D, V>,
+        labels: &mut [u32],
+        alpha: u32,
+        current: C,
+        hard: C,
+    ) -> Result<MoveOutcome<C>>
+    where
+        D: Fn(usize, usize) -> C,
+        V: Fn(usize, usize, usize, usize) -> C,
+    {
+        let a = alpha as usize;
+        let n = energy.num_sites;
+        self.var_of.clear();
+        self.var_of.resize(n, FIXED);
+        self.site_of.clear();
+        self.tdelta.clear();
+        for (p, &l) in labels.iter().enumerate() {
+            if l == alpha {
+                continue;
+            }
+            let switch = (energy.unary)(p, a);
+            if switch.is_infinite() && switch > C::ZERO {
+                continue; // α is forbidden at p
+            }
+            if switch.is_nan() || switch.is_infinite() {
+                return Err(Error::NonFiniteCost {
+                    term: "unary",
+                    value: format!("{switch:?}"),
+                    location: format!("site {p}, label {a}"),
+                });
+            }
+            let keep = energy.unary_clamped(p, l as usize, hard)?;
+            self.var_of[p] = self.site_of.len() as u32;
+            self.site_of.push(p as u32);
+            self.tdelta.push(switch - keep);
+        }
+        let num_vars = self.site_of.len();
+        if num_vars == 0 {
+            return Ok(MoveOutcome { accepted: None, truncated: 0 });
+        }
+        self.graph.reset(num_vars);
+        let mut truncated = 0;
+        for v in 0..num_vars {
+            let p = self.site_of[v] as usize;
+            for i in self.incident_start[p] as usize..self.incident_start[p + 1] as usize {
+                let k = self.incident[i] as usize;
+                let [s, t] = energy.edges[k];
+                let (s, t) = (s as usize, t as usize);
+                let other = if s == p { t } else { s };
+                let vo = self.var_of[other];
+                let (ls, lt) = (labels[s] as usize, labels[t] as usize);
+                if vo == FIXED {
+                    // The other end keeps its label: a unary term of p.
+                    let (keep, switch) = if s == p {
+                        (
+                            energy.pairwise_clamped(k, s, t, ls, lt, hard)?,
+                            energy.pairwise_clamped(k, s, t, a, lt, hard)?,
+                        )
+                    } else {
+                        (
+                            energy.pairwise_clamped(k, s, t, ls, lt, hard)?,
+                            energy.pairwise_clamped(k, s, t, ls, a, hard)?,
+                        )
+                    };
+                    self.tdelta[v] += switch - keep;
+                    continue;
+                }
+                if other < p {
+                    continue; // visited from the other end
+                }
+                let (vs, vt) = if s == p { (v, vo as usize) } else { (vo as usize, v) };
+                // E(y_s, y_t), y = 1 meaning "switch to α": A = E(0,0), B = E(0,1),
+                // C = E(1,0), D = E(1,1). With K = B + C − A − D ≥ 0 split into arcs s→t (cut
+                // when y_s = 0, y_t = 1) of capacity K − e and t→s of capacity e:
+                // E = A + (C − A − e) y_s + (D − C + e) y_t + cuts. Any e ∈ [0, K] is exact;
+                // e = clamp(C − A, 0, K) zeroes one unary part, so a term that only penalises
+                // disagreement (A = D = 0, B = C) costs arcs both ways and no terminal flow (the
+                // one-sided split would route K through the terminals).
+                let ea = energy.pairwise_clamped(k, s, t, ls, lt, hard)?;
+                let mut eb = energy.pairwise_clamped(k, s, t, ls, a, hard)?;
+                let ec = energy.pairwise_clamped(k, s, t, a, lt, hard)?;
+                let ed = energy.pairwise_clamped(k, s, t, a, a, hard)?;
+                if ea + ed > eb + ec {
+                    // Not submodular: raise B to A + D − C (an upper bound, exact at the
+                    // current labelling).
+                    truncated += 1;
+                    eb = ea + ed - ec;
+                }
+                let k_total = eb + ec - ea - ed;
+                let mut e = ec - ea;
+                if e < C::ZERO {
+                    e = C::ZERO;
+                } else if e > k_total {
+                    e = k_total;
+                }
+                self.tdelta[vs] += ec - ea - e;
+                self.tdelta[vt] += ed - ec + e;
+                if k_total > C::ZERO {
+                    self.graph.add_edge(vs, vt, k_total - e, e);
+                }
+            }
+        }
+        // y = 1 (sink side) cuts the source link: cost(switch) − cost(keep) = d.
+        let mut sink_total = C::ZERO;
+        for v in 0..num_vars {
+            let d = self.tdelta[v];
+            if d > C::ZERO {
+                self.graph.add_tweights(v, d, C::ZERO);
+            } else if d < C::ZERO {
+                self.graph.add_tweights(v, C::ZERO, -d);
+                sink_total -= d;
+            }
+        }
+        let flow = self.graph.maxflow();
+
+        // Nodes the source cannot reach switch to α (free nodes too: ties go to α).
+        self.switched.clear();
+        for (v, &p) in self.site_of.iter().enumerate() {
+            if self.graph.what_segment_or(v, Segment::Sink) == Segment::Sink {
+                self.switched.push(p);
+            }
+        }
+        if self.switched.is_empty() {
+            return Ok(MoveOutcome { accepted: None, truncated });
+        }
+        let new_energy = if truncated == 0 && flow_is_accurate(sink_total, flow, current) {
+            current + flow - sink_total
+        } else {
+            // The cut minimised an upper bound (truncation), or the flow is far larger than the
+            // energy (with floats, +∞ costs replaced by `infinite_cost` flow through the graph,
+            // leaving rounding errors): score the move by its exact energy change instead.
+            current + self.energy_change(energy, labels, alpha, hard)?
+        };
+        if !lower(new_energy, current) {
+            return Ok(MoveOutcome { accepted: None, truncated });
+        }
+        for &p in &self.switched {
+            labels[p as usize] = alpha;
+        }
+        Ok(MoveOutcome { accepted: Some(new_energy), truncated })
+    }
+
+    /// E(after) − E(before) of switching `self.switched` to `alpha`, summed over the terms that
+    /// change (unary terms of the switched sites, pairwise terms of their edges).
+    fn energy_change<D, V>(
+        &mut self,
+        energy: &MrfEnergy<'_, C, D, V>,
+        labels: &[u32],
+        alpha: u32,
+        hard: C,
+    ) -> Result<C>
+    where
+        D: Fn(usize, usize) -> C,
+        V: Fn(usize, usize, usize, usize) -> C,
+    {
+        self.is_switched.clear();
+        self.is_switched.resize(labels.len(), false);
+        for &p in &self.switched {
+            self.is_switched[p as usize] = true;
+        }
+        let after = |s: usize| if self.is_switched[s] { alpha as usize } else { labels[s] as usize };
+        let mut delta = C::ZERO;
+        for &p in &self.switched {
+            let p = p as usize;
+            delta += energy.unary_clamped(p, alpha as usize, hard)?
+                - energy.unary_clamped(p, labels[p] as usize, hard)?;
+            for &k in &self.incident[self.incident_start[p] as usize..self.incident_start[p + 1] as usize] {
+                let [s, t] = energy.edges[k as usize];
+                let (s, t) = (s as usize, t as usize);
+                let other = if s == p { t } else { s };
+                if self.is_switched[other] && other < p {
+                    continue; // counted from the other end
+                }
+                delta += energy.pairwise_clamped(k as usize, s, t, after(s), after(t), hard)?
+                    - energy.pairwise_clamped(
+                        k as usize,
+                        s,
+                        t,
+                        labels[s] as usize,
+                        labels[t] as usize,
+                        hard,
+                    )?;
+            }
+        }
+        Ok(delta)
+    }
+}
+
+/// Whether `current + flow − sink_total` gives the move's energy accurately: always for integers;
+/// for floats when the flow and sink capacities are at most 1000 times the energy, so that the
+/// flow's rounding (about one ulp per augmentation) stays far below the acceptance tolerance of
+/// [`lower`].
+#[inline]
+fn flow_is_accurate<C: Capacity>(sink_total: C, flow: C, current: C) -> bool {
+    if !C::IS_FLOAT {
+        return true;
+    }
+    let scale = current.to_f64().abs().max(1.0);
+    sink_total.to_f64().abs() + flow.to_f64().abs() <= 1e3 * scale
+}
+
+/// `new < current`, with a relative tolerance of 1e-10 for floating-point energies (the flow
+/// value accumulates rounding over the augmentations; a smaller gain is not worth a move).
+#[inline]
+fn lower<C: Capacity>(new: C, current: C) -> bool {
+    if C::IS_FLOAT {
+        let (n, c) = (new.to_f64(), current.to_f64());
+        n < c - 1e-10 * c.abs().max(1.0)
+    } else {
+        new < current
+    }
+}
+
+/// One-shot alpha-expansion: see [`AlphaExpansion::solve`].
+///
+/// ```
+/// use motif_retarget::alpha_expansion::{alpha_expansion, AlphaExpansionOptions, MrfEnergy};
+/// // A chain of 4 sites, 3 labels, Potts smoothness of weight 2.
+/// let edges = [[0, 1], [1, 2], [2, 3]];
+/// let unary = [0, 5, 5, /**/ 5, 0, 5, /**/ 0, 5, 5, /**/ 0, 5, 5];
+/// let energy = MrfEnergy::new(4, 3, &edges, |p, l| unary[p * 3 + l], |_, _, a, b| {
+///     if a == b { 0i64 } else { 2 }
+/// });
+/// let r = alpha_expansion(&energy, &[0, 1, 0, 0], &AlphaExpansionOptions::default()).unwrap();
+/// assert_eq!(r.labels, vec![0, 1, 0, 0]);
+/// assert_eq!(r.energy, 4);
+/// ```
+pub fn alpha_expansion<C, D, V>(
+    energy: &MrfEnergy<'_, C, D, V>,
+    init: &[u32],
+    options: &AlphaExpansionOptions,
+) -> Result<AlphaExpansionResult<C>>
+where
+    C: Capacity,
+    D: Fn(usize, usize) -> C,
+    V: Fn(usize, usize, usize, usize) -> C,
+{
+    AlphaExpansion::new().solve(energy, init, options)
+}

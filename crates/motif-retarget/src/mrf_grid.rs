@@ -1,0 +1,645 @@
+//! Grid MRF problems in the shared `mrf_grid_v1` JSON format: loading, validation, solving by
+//! alpha-expansion, and a generator of benchmark instances.
+//!
+//! The format (`shared/formats/mrf.md`) describes a multi-label MRF on an `nx × ny × nz` voxel
+//! grid, the shape of the thesis's retargeting space Ω (section 4.2.2), so that Motif's solver can
+//! be compared with GCO and PyMaxflow on identical problems:
+//! - site index `p = (x·ny + y)·nz + z` (C order, z fastest);
+//! - `unary[p·L + l]` = D_p(l), integers; `invalid_cost` marks forbidden labels (a large finite
+//!   cost, treated like any other cost);
+//! - `pairwise` an L×L integer matrix V, the same for every neighbour pair, scaled by
+//!   `edge_weight`;
+//! - neighbours: 6-connectivity (offsets (1,0,0), (0,1,0), (0,0,1)) or 26-connectivity (the 13
+//!   lexicographically positive offsets in {−1,0,1}³), each unordered pair once, ordered (lower
+//!   site index, higher site index) when V is read;
+//! - E = Σ_p `unary[p·L + x_p]` + edge_weight · Σ_{pairs {p,q}} `V[x_p][x_q]`.
+//!
+//! Energies are exact 64-bit integers; loading rejects problems whose energy could overflow.
+
+use std::path::Path;
+use std::time::Instant;
+
+use rand::{Rng, SeedableRng};
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+
+use crate::alpha_expansion::{AlphaExpansion, AlphaExpansionOptions, MrfEnergy, Termination};
+use crate::error::{Error, Result};
+
+/// The `format` value of a grid MRF problem.
+pub const FORMAT: &str = "mrf_grid_v1";
+
+/// The initial-labelling rule of the shipped files: per-site argmin of the unary, lowest label on
+/// ties.
+pub const ARGMIN_RULE: &str = "argmin_l unary[p*L + l], lowest l on ties";
+
+/// Neighbourhood of a grid site.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Connectivity {
+    /// The 6 face neighbours: offsets (1,0,0), (0,1,0), (0,0,1) and their opposites.
+    Six,
+    /// The 26 face, edge and corner neighbours: the 13 lexicographically positive offsets in
+    /// {−1,0,1}³ and their opposites.
+    TwentySix,
+}
+
+/// The 13 lexicographically positive offsets in {−1,0,1}³ (first non-zero component > 0).
+const OFFSETS_26: [[i64; 3]; 13] = [
+    [0, 0, 1],
+    [0, 1, -1],
+    [0, 1, 0],
+    [0, 1, 1],
+    [1, -1, -1],
+    [1, -1, 0],
+    [1, -1, 1],
+    [1, 0, -1],
+    [1, 0, 0],
+    [1, 0, 1],
+    [1, 1, -1],
+    [1, 1, 0],
+    [1, 1, 1],
+];
+const OFFSETS_6: [[i64; 3]; 3] = [[1, 0, 0], [0, 1, 0], [0, 0, 1]];
+
+impl Connectivity {
+    /// The neighbour count in the format's `connectivity` field (6 or 26).
+    pub fn number(self) -> u32 {
+        match self {
+            Connectivity::Six => 6,
+            Connectivity::TwentySix => 26,
+        }
+    }
+
+    /// The connectivity for 6 or 26, `None` otherwise.
+    pub fn from_number(n: u64) -> Option<Self> {
+        match n {
+            6 => Some(Connectivity::Six),
+            26 => Some(Connectivity::TwentySix),
+            _ => None,
+        }
+    }
+
+    /// The positive offsets (dx, dy, dz): one per unordered neighbour pair.
+    pub fn offsets(self) -> &'static [[i64; 3]] {
+        match self {
+            Connectivity::Six => &OFFSETS_6,
+            Connectivity::TwentySix => &OFFSETS_26,
+        }
+    }
+}
+
+/// The starting labelling of a grid problem.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub enum InitLabels {
+    /// An explicit labelling in site order (`#sites`, each < L).
+    Labels(Vec<u32>),
+    /// Per-site argmin of the unary costs, lowest label on ties ([`ARGMIN_RULE`]).
+    UnaryArgmin,
+}
+
+/// A validated `mrf_grid_v1` problem.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GridProblem {
+    /// Grid size `[nx, ny, nz]`, each ≥ 1.
+    pub dims: [usize; 3],
+    /// Number of labels L ≥ 1.
+    pub num_labels: usize,
+    /// Neighbourhood.
+    pub connectivity: Connectivity,
+    /// Weight of every neighbour pair.
+    pub edge_weight: i64,
+    /// Unary costs, `#sites × L`, `unary[p·L + l]`.
+    pub unary: Vec<i64>,
+    /// Pairwise costs V, L × L row-major: `pairwise[a·L + b]` = `V[a][b]`.
+    pub pairwise: Vec<i64>,
+    /// The cost that marks a forbidden label (informational; solved as a finite cost).
+    pub invalid_cost: i64,
+    /// The starting labelling.
+    pub init_labels: InitLabels,
+}
+
+/// The result of solving a grid problem (serialisable for `motif mrf solve --json`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GridSolution {
+    /// Grid size `[nx, ny, nz]`.
+    pub dims: [usize; 3],
+    /// Number of labels L.
+    pub num_labels: usize,
+    /// 6 or 26.
+    pub connectivity: u32,
+    /// Number of neighbour pairs.
+    pub num_edges: usize,
+    /// Energy of `labels_flat`, recomputed with the format's formula.
+    pub energy: i64,
+    /// Energy of the initial labelling.
+    pub initial_energy: i64,
+    /// Final labels in site order.
+    pub labels_flat: Vec<u32>,
+    /// Expansion cycles run (the last one, when converged, confirms that no move helps).
+    pub cycles: usize,
+    /// Energy after each cycle.
+    pub cycle_energies: Vec<i64>,
+    /// Expansion moves solved by a graph cut.
+    pub moves: usize,
+    /// Moves that lowered the energy.
+    pub accepted_moves: usize,
+    /// Non-submodular move terms truncated (0 when V is a metric).
+    pub truncated_terms: usize,
+    /// Why the expansion loop stopped.
+    pub termination: Termination,
+    /// Solve time in milliseconds (graph construction and alpha-expansion; not file loading).
+    pub solve_ms: f64,
+}
+
+/// Reads, validates and solves an `mrf_grid_v1` file.
+///
+/// # Errors
+/// [`Error::Io`] when the file cannot be read, [`Error::Json`] / [`Error::Field`] when it is not
+/// a valid problem.
+pub fn solve_grid_file(path: &Path, options: &AlphaExpansionOptions) -> Result<GridSolution> {
+    let bytes = std::fs::read(path).map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
+    GridProblem::from_json_bytes(&bytes)?.solve(options)
+}
+
+fn get<'a>(obj: &'a serde_json::Map<String, Value>, key: &str) -> Result<&'a Value> {
+    obj.get(key).ok_or_else(|| Error::field(key, "missing"))
+}
+
+fn describe(v: &Value) -> String {
+    let s = v.to_string();
+    if s.chars().count() > 40 { format!("{}…", s.chars().take(40).collect::<String>()) } else { s }
+}
+
+/// An integer, also accepting integral floats (`3.0`) within ±2⁵³.
+fn as_int(v: &Value, field: impl FnOnce() -> String) -> Result<i64> {
+    if let Some(i) = v.as_i64() {
+        return Ok(i);
+    }
+    if let Some(f) = v.as_f64().filter(|f| f.fract() == 0.0 && f.abs() <= 9_007_199_254_740_992.0) {
+        return Ok(f as i64);
+    }
+    Err(Error::field(field(), format!("expected an integer, found {}", describe(v))))
+}
+
+fn as_count(v: &Value, field: &str, min: u64) -> Result<u64> {
+    let i = as_int(v, || field.to_string())?;
+    if i < min as i64 {
+        return Err(Error::field(field, format!("must be at least {min}, found {i}")));
+    }
+    Ok(i as u64)
+}
+
+impl GridProblem {
+    /// Parses and validates an `mrf_grid_v1` problem from JSON bytes.
+    ///
+    /// Required fields: `format`, `dims`, `num_labels`, `connectivity`, `unary`, `pairwise`.
+    /// Optional: `edge_weight` (default 1), `invalid_cost` (default 1000000), `init_labels`
+    /// (default the argmin rule). The descriptive string fields are ignored.
+    ///
+    /// # Errors
+    /// [`Error::Json`] for malformed JSON, [`Error::Field`] naming the first bad field.
+    pub fn from_json_bytes(bytes: &[u8]) -> Result<Self> {
+        let root: Value =
+            serde_json::from_slice(bytes).map_err(|e| Error::Json { message: e.to_string() })?;
+        let obj = root.as_object().ok_or_else(|| Error::field("(root)", "expected a JSON object"))?;
+
+        match get(obj, "format")? {
+            Value::String(s) if s == FORMAT => {}
+            v => return Err(Error::field("format", format!("expected \"{FORMAT}\", found {}", describe(v)))),
+        }
+
+        let dims_v = get(obj, "dims")?
+            .as_array()
+            .ok_or_else(|| Error::field("dims", "expected an array [nx, ny, nz]"))?;
+        if dims_v.len() != 3 {
+            return Err(Error::field(
+                "dims",
+                format!("expected 3 sizes [nx, ny, nz], found {}", dims_v.len()),
+            ));
+        }
+        let mut dims = [0usize; 3];
+        for (i, d) in dims_v.iter().enumerate() {
+            let n = as_count(d, &format!("dims[{i}]"), 1)?;
+            dims[i] = usize::try_from(n).map_err(|_| Error::field(format!("dims[{i}]"), "too large"))?;
+        }
+        let num_sites = dims[0]
+            .checked_mul(dims[1])
+            .and_then(|x| x.checked_mul(dims[2]))
+            .filter(|&n| n < (u32::MAX / 32) as usize)
+            .ok_or_else(|| Error::field("dims", format!("{dims:?} is too many sites")))?;
+
+        let num_labels = as_count(get(obj, "num_labels")?, "num_labels", 1)?;
+        let num_labels = usize::try_from(num_labels)
+            .ok()
+            .filter(|&l| l <= u32::MAX as usize)
+            .ok_or_else(|| Error::field("num_labels", "too large"))?;
+
+        let conn_v = get(obj, "connectivity")?;
+        let connectivity = as_int(conn_v, || "connectivity".into())
+            .ok()
+            .and_then(|n| Connectivity::from_number(n as u64))
+            .ok_or_else(|| {
+                Error::field("connectivity", format!("expected 6 or 26, found {}", describe(conn_v)))
+            })?;
+
+        let edge_weight = match obj.get("edge_weight") {
+            Some(v) => as_int(v, || "edge_weight".into())?,
+            None => 1,
+        };
+        let invalid_cost = match obj.get("invalid_cost") {
+            Some(v) => as_int(v, || "invalid_cost".into())?,
+            None => 1_000_000,
+        };
+
+        let unary_v = get(obj, "unary")?
+            .as_array()
+            .ok_or_else(|| Error::field("unary", "expected a flat array of integers"))?;
+        let expected = num_sites.checked_mul(num_labels);
+        if expected != Some(unary_v.len()) {
+            return Err(Error::field(
+                "unary",
+                format!(
+                    "has {} entries, expected nx·ny·nz·num_labels = {}·{}·{}·{} = {}",
+                    unary_v.len(),
+                    dims[0],
+                    dims[1],
+                    dims[2],
+                    num_labels,
+                    expected.map_or("(overflow)".to_string(), |e| e.to_string())
+                ),
+            ));
+        }
+        let unary = unary_v
+            .iter()
+            .enumerate()
+            .map(|(i, v)| as_int(v, || format!("unary[{i}]")))
+            .collect::<Result<Vec<i64>>>()?;
+
+        let rows = get(obj, "pairwise")?
+            .as_array()
+            .ok_or_else(|| Error::field("pairwise", "expected an L×L array"))?;
+        if rows.len() != num_labels {
+            return Err(Error::field(
+                "pairwise",
+                format!("has {} rows, expected num_labels = {num_labels}", rows.len()),
+            ));
+        }
+        // Check every row's length before allocating L² entries: they are then all in the JSON.
+        for (a, row) in rows.iter().enumerate() {
+            if row.as_array().is_none_or(|r| r.len() != num_labels) {
+                return Err(Error::field(
+                    format!("pairwise[{a}]"),
+                    format!("expected {num_labels} integers"),
+                ));
+            }
+        }
+        let mut pairwise = Vec::with_capacity(num_labels * num_labels);
+        for (a, row) in rows.iter().enumerate() {
+            for (b, v) in row.as_array().into_iter().flatten().enumerate() {
+                pairwise.push(as_int(v, || format!("pairwise[{a}][{b}]"))?);
+            }
+        }
+
+        let init_labels = match obj.get("init_labels") {
+            None => InitLabels::UnaryArgmin,
+            Some(Value::String(s)) => {
+                if s.trim_start().to_ascii_lowercase().starts_with("argmin") {
+                    InitLabels::UnaryArgmin
+                } else {
+                    return Err(Error::field(
+                        "init_labels",
+                        format!("unknown rule {s:?}; expected a list of labels or \"{ARGMIN_RULE}\""),
+                    ));
+                }
+            }
+            Some(Value::Array(list)) => {
+                if list.len() != num_sites {
+                    return Err(Error::field(
+                        "init_labels",
+                        format!("has {} labels, expected one per site ({num_sites})", list.len()),
+                    ));
+                }
+                let mut labels = Vec::with_capacity(list.len());
+                for (p, v) in list.iter().enumerate() {
+                    let l = as_int(v, || format!("init_labels[{p}]"))?;
+                    if l < 0 || l as u64 >= num_labels as u64 {
+                        return Err(Error::field(
+                            format!("init_labels[{p}]"),
+                            format!("label {l} outside 0..{num_labels}"),
+                        ));
+                    }
+                    labels.push(l as u32);
+                }
+                InitLabels::Labels(labels)
+            }
+            Some(v) => {
+                return Err(Error::field(
+                    "init_labels",
+                    format!("expected a list of labels or a rule string, found {}", describe(v)),
+                ));
+            }
+        };
+
+        let problem = GridProblem {
+            dims,
+            num_labels,
+            connectivity,
+            edge_weight,
+            unary,
+            pairwise,
+            invalid_cost,
+            init_labels,
+        };
+        problem.validate()?;
+        Ok(problem)
+    }
+
+    /// Parses and validates an `mrf_grid_v1` problem from a JSON string.
+    ///
+    /// # Errors
+    /// As [`GridProblem::from_json_bytes`].
+    pub fn from_json_str(s: &str) -> Result<Self> {
+        Self::from_json_bytes(s.as_bytes())
+    }
+
+    /// Checks that the sizes agree and that no energy can overflow 64-bit integers. Problems from
+    /// [`GridProblem::from_json_bytes`] and [`generate_grid`] are already valid; call this after
+    /// building or editing one by hand.
+    ///
+    /// # Errors
+    /// [`Error::Field`] naming the inconsistent field.
+    pub fn validate(&self) -> Result<()> {
+        if self.dims.contains(&0) {
+            return Err(Error::field("dims", format!("{:?} has a zero size", self.dims)));
+        }
+        let num_sites = self
+            .dims
+            .iter()
+            .try_fold(1usize, |acc, &d| acc.checked_mul(d))
+            .filter(|&n| n < (u32::MAX / 32) as usize)
+            .ok_or_else(|| Error::field("dims", format!("{:?} is too many sites", self.dims)))?;
+        if self.num_labels == 0 || self.num_labels > u32::MAX as usize {
+            return Err(Error::field("num_labels", format!("{} is not in 1..=2^32-1", self.num_labels)));
+        }
+        if num_sites.checked_mul(self.num_labels) != Some(self.unary.len()) {
+            return Err(Error::field(
+                "unary",
+                format!("has {} entries, expected {num_sites}·{}", self.unary.len(), self.num_labels),
+            ));
+        }
+        if self.num_labels.checked_mul(self.num_labels) != Some(self.pairwise.len()) {
+            return Err(Error::field(
+                "pairwise",
+                format!("has {} entries, expected {1}×{1}", self.pairwise.len(), self.num_labels),
+            ));
+        }
+        if let InitLabels::Labels(l) = &self.init_labels {
+            if l.len() != num_sites {
+                return Err(Error::field(
+                    "init_labels",
+                    format!("has {} labels for {num_sites} sites", l.len()),
+                ));
+            }
+            if let Some(p) = l.iter().position(|&x| x as usize >= self.num_labels) {
+                return Err(Error::field(
+                    format!("init_labels[{p}]"),
+                    format!("label {} out of range", l[p]),
+                ));
+            }
+        }
+        // Worst-case |energy| (and every partial sum the solver forms) must fit comfortably.
+        let max_unary = self.unary.iter().map(|x| x.unsigned_abs() as u128).max().unwrap_or(0);
+        let max_pair = self.pairwise.iter().map(|x| x.unsigned_abs() as u128).max().unwrap_or(0);
+        let pairs = num_sites as u128 * self.connectivity.offsets().len() as u128;
+        let bound = max_unary.saturating_mul(2 * num_sites as u128).saturating_add(
+            (4 * self.edge_weight.unsigned_abs() as u128).saturating_mul(max_pair).saturating_mul(pairs),
+        );
+        if bound > (1u128 << 62) {
+            return Err(Error::field(
+                "unary",
+                "costs are too large: energies of this problem could overflow 64-bit integers; scale them down",
+            ));
+        }
+        Ok(())
+    }
+
+    /// Number of sites nx·ny·nz.
+    pub fn num_sites(&self) -> usize {
+        self.dims[0] * self.dims[1] * self.dims[2]
+    }
+
+    /// The neighbour pairs `[p, q]` (p < q), site-major, offsets in the order of
+    /// [`Connectivity::offsets`].
+    pub fn edges(&self) -> Vec<[u32; 2]> {
+        let [nx, ny, nz] = self.dims.map(|d| d as i64);
+        let offsets = self.connectivity.offsets();
+        let mut edges = Vec::with_capacity(self.num_sites() * offsets.len());
+        for x in 0..nx {
+            for y in 0..ny {
+                for z in 0..nz {
+                    let p = (x * ny + y) * nz + z;
+                    for &[dx, dy, dz] in offsets {
+                        let (qx, qy, qz) = (x + dx, y + dy, z + dz);
+                        if (0..nx).contains(&qx) && (0..ny).contains(&qy) && (0..nz).contains(&qz) {
+                            let q = (qx * ny + qy) * nz + qz;
+                            edges.push([p as u32, q as u32]);
+                        }
+                    }
+                }
+            }
+        }
+        edges
+    }
+
+    /// The starting labelling (explicit, or the argmin rule applied).
+    pub fn initial_labels(&self) -> Vec<u32> {
+        match &self.init_labels {
+            InitLabels::Labels(l) => l.clone(),
+            InitLabels::UnaryArgmin => self
+                .unary
+                .chunks_exact(self.num_labels)
+                .map(|row| {
+                    let mut best = 0;
+                    for (l, &c) in row.iter().enumerate() {
+                        if c < row[best] {
+                            best = l;
+                        }
+                    }
+                    best as u32
+                })
+                .collect(),
+        }
+    }
+
+    /// The energy of `labels` with the format's formula.
+    ///
+    /// # Errors
+    /// [`Error::Field`] for an invalid problem, [`Error::InvalidEnergy`] when `labels` has the
+    /// wrong length or a label out of range.
+    pub fn energy(&self, labels: &[u32]) -> Result<i64> {
+        self.validate()?;
+        self.energy_with_edges(labels, &self.edges())
+    }
+
+    fn energy_with_edges(&self, labels: &[u32], edges: &[[u32; 2]]) -> Result<i64> {
+        let l = self.num_labels;
+        if labels.len() != self.num_sites() {
+            return Err(Error::energy(format!("{} labels for {} sites", labels.len(), self.num_sites())));
+        }
+        if let Some(p) = labels.iter().position(|&x| x as usize >= l) {
+            return Err(Error::energy(format!("site {p} has label {} outside 0..{l}", labels[p])));
+        }
+        let unary: i64 = labels.iter().enumerate().map(|(p, &x)| self.unary[p * l + x as usize]).sum();
+        let pair: i64 = edges
+            .iter()
+            .map(|&[p, q]| self.pairwise[labels[p as usize] as usize * l + labels[q as usize] as usize])
+            .sum();
+        Ok(unary + self.edge_weight * pair)
+    }
+
+    /// Solves the problem by alpha-expansion from its initial labelling.
+    ///
+    /// # Errors
+    /// Only for an invalid problem (see [`GridProblem::validate`]).
+    pub fn solve(&self, options: &AlphaExpansionOptions) -> Result<GridSolution> {
+        self.validate()?;
+        let start = Instant::now();
+        let l = self.num_labels;
+        let edges = self.edges();
+        let weighted: Vec<i64> = self.pairwise.iter().map(|&v| self.edge_weight * v).collect();
+        let unary = &self.unary;
+        let energy = MrfEnergy::new(
+            self.num_sites(),
+            l,
+            &edges,
+            |p, a| unary[p * l + a],
+            |_, _, a, b| weighted[a * l + b],
+        );
+        let init = self.initial_labels();
+        let r = AlphaExpansion::<i64>::new().solve(&energy, &init, options)?;
+        let solve_ms = start.elapsed().as_secs_f64() * 1e3;
+        let energy = self.energy_with_edges(&r.labels, &edges)?;
+        let initial_energy = self.energy_with_edges(&init, &edges)?;
+        Ok(GridSolution {
+            dims: self.dims,
+            num_labels: l,
+            connectivity: self.connectivity.number(),
+            num_edges: edges.len(),
+            energy,
+            initial_energy,
+            labels_flat: r.labels,
+            cycles: r.cycles,
+            cycle_energies: r.cycle_energies,
+            moves: r.moves,
+            accepted_moves: r.accepted_moves,
+            truncated_terms: r.truncated_terms,
+            termination: r.termination,
+            solve_ms,
+        })
+    }
+
+    /// The problem as `mrf_grid_v1` JSON, with the descriptive fields of the shipped files.
+    pub fn to_json_string(&self) -> String {
+        #[derive(Serialize)]
+        struct Out<'a> {
+            format: &'a str,
+            dims: [usize; 3],
+            num_labels: usize,
+            connectivity: u32,
+            edge_weight: i64,
+            site_index: &'a str,
+            unary_layout: &'a str,
+            unary: &'a [i64],
+            pairwise: Vec<&'a [i64]>,
+            invalid_cost: i64,
+            energy: &'a str,
+            neighbours: &'a str,
+            init_labels: Value,
+        }
+        let out = Out {
+            format: FORMAT,
+            dims: self.dims,
+            num_labels: self.num_labels,
+            connectivity: self.connectivity.number(),
+            edge_weight: self.edge_weight,
+            site_index: "p = (x*ny + y)*nz + z (C order, z fastest)",
+            unary_layout: "unary[p*num_labels + l] = D[p][l], int",
+            unary: &self.unary,
+            pairwise: self.pairwise.chunks(self.num_labels.max(1)).collect(),
+            invalid_cost: self.invalid_cost,
+            energy: "E = sum_p unary[p*L + x_p] + sum over unordered neighbour pairs {p,q} of pairwise[x_p][x_q]",
+            neighbours: "6: offsets (1,0,0),(0,1,0),(0,0,1); 26: all 13 lexicographically positive offsets in {-1,0,1}^3",
+            init_labels: match &self.init_labels {
+                InitLabels::Labels(l) => Value::from(l.clone()),
+                InitLabels::UnaryArgmin => Value::from(ARGMIN_RULE),
+            },
+        };
+        // Serialising plain numbers and strings cannot fail.
+        serde_json::to_string(&out).unwrap_or_default()
+    }
+}
+
+/// Generates a benchmark problem of the same kind as the shipped example
+/// (`mrf_10x10x10_L8_c6.json`): a smooth hidden label field g (three random plane waves),
+/// unary costs `4·|l − g_p| + U{0..24}` with each entry forbidden (`invalid_cost` = 1000000) with
+/// probability 0.1 (never all labels of a site), truncated-linear pairwise costs
+/// `V(a, b) = 10·min(|a − b|, 4)`, `edge_weight` 1, and the argmin initial labelling.
+/// Deterministic for a given seed. It reproduces the example's statistics (cost range, 10 %
+/// invalid entries, spatial correlation), not its exact numbers.
+///
+/// # Panics
+/// If a size or `num_labels` is 0.
+pub fn generate_grid(
+    dims: [usize; 3],
+    num_labels: usize,
+    connectivity: Connectivity,
+    seed: u64,
+) -> GridProblem {
+    assert!(!dims.contains(&0) && num_labels > 0, "generate_grid needs non-zero sizes and labels");
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let waves: Vec<([f64; 3], f64)> = (0..3)
+        .map(|_| {
+            let f = [0, 1, 2].map(|i| rng.random_range(0.5..2.0) / dims[i] as f64);
+            (f, rng.random_range(0.0..std::f64::consts::TAU))
+        })
+        .collect();
+    let invalid_cost = 1_000_000;
+    let l = num_labels;
+    let mut unary = Vec::with_capacity(dims[0] * dims[1] * dims[2] * l);
+    for x in 0..dims[0] {
+        for y in 0..dims[1] {
+            for z in 0..dims[2] {
+                let pos = [x as f64, y as f64, z as f64];
+                let s: f64 = waves
+                    .iter()
+                    .map(|(f, phase)| {
+                        (std::f64::consts::TAU * (f[0] * pos[0] + f[1] * pos[1] + f[2] * pos[2]) + phase)
+                            .sin()
+                    })
+                    .sum::<f64>()
+                    / 3.0;
+                let g = (s + 1.0) * 0.5 * (l - 1) as f64;
+                let row_start = unary.len();
+                for label in 0..l {
+                    let cost = (4.0 * (label as f64 - g).abs()).round() as i64 + rng.random_range(0..=24);
+                    unary.push(if rng.random_bool(0.1) { invalid_cost } else { cost });
+                }
+                if unary[row_start..].iter().all(|&c| c == invalid_cost) {
+                    let label = rng.random_range(0..l);
+                    unary[row_start + label] = (4.0 * (label as f64 - g).abs()).round() as i64;
+                }
+            }
+        }
+    }
+    let pairwise = (0..l * l).map(|i| 10 * ((i / l).abs_diff(i % l).min(4) as i64)).collect();
+    GridProblem {
+        dims,
+        num_labels,
+        connectivity,
+        edge_weight: 1,
+        unary,
+        pairwise,
+        invalid_cost,
+        init_labels: InitLabels::UnaryArgmin,
+    }
+}
