@@ -50,6 +50,9 @@ pub enum Command {
     Features(FeaturesCommand),
     /// Rigidly align one shape to another with ICP.
     Align(AlignArgs),
+    /// Multi-label MRF problems (alpha-expansion on Boykov–Kolmogorov max-flow).
+    #[command(subcommand)]
+    Mrf(MrfCommand),
     /// Write a procedural example shape with known structure.
     Example(ExampleArgs),
     /// Run everything Motif can do, end to end, on generated examples, and say what happened.
@@ -155,7 +158,7 @@ pub struct NormalsArgs {
     #[arg(long, value_enum, default_value_t)]
     pub orientation: OrientationArg,
     /// Viewpoint for --orientation viewpoint, as X,Y,Z.
-    #[arg(long, value_delimiter = ',', num_args = 3)]
+    #[arg(long, value_delimiter = ',')]
     pub viewpoint: Option<Vec<f64>>,
     /// For meshes: estimate from the vertices as if they were a point cloud, instead of using
     /// area-weighted face normals.
@@ -288,4 +291,63 @@ pub struct DemoArgs {
     pub out: PathBuf,
     #[command(flatten)]
     pub json: JsonArg,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum MrfCommand {
+    /// Solve an `mrf_grid_v1` problem (../shared/formats/mrf.md) by alpha-expansion.
+    Solve(MrfSolveArgs),
+    /// Write a random `mrf_grid_v1` problem of the shipped kind (for benchmarks against GCO).
+    Generate(MrfGenerateArgs),
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum, Default, PartialEq)]
+pub enum LabelOrderArg {
+    /// Labels 0, 1, ..., L-1 in every cycle.
+    #[default]
+    Sequential,
+    /// A random permutation per cycle, drawn from --seed.
+    Random,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum, Default, PartialEq)]
+pub enum CyclesArg {
+    /// Every label in every cycle until no move lowers the energy.
+    #[default]
+    Full,
+    /// Labels whose last move succeeded first; stops earlier on easy problems.
+    Adaptive,
+}
+
+#[derive(Debug, Args)]
+pub struct MrfSolveArgs {
+    /// Problem file (JSON, format mrf_grid_v1).
+    pub problem: PathBuf,
+    /// Maximum expansion cycles.
+    #[arg(long, default_value_t = 100)]
+    pub max_cycles: usize,
+    /// Label order within a cycle.
+    #[arg(long, value_enum, default_value_t)]
+    pub order: LabelOrderArg,
+    /// Cycle strategy.
+    #[arg(long, value_enum, default_value_t)]
+    pub cycles: CyclesArg,
+    #[command(flatten)]
+    pub json: JsonArg,
+}
+
+#[derive(Debug, Args)]
+pub struct MrfGenerateArgs {
+    /// Grid size as NX,NY,NZ.
+    #[arg(long, value_delimiter = ',', default_values_t = [10, 10, 10])]
+    pub dims: Vec<usize>,
+    /// Number of labels.
+    #[arg(long, default_value_t = 8)]
+    pub labels: usize,
+    /// Neighbourhood: 6 or 26.
+    #[arg(long, default_value_t = 6)]
+    pub connectivity: u32,
+    /// Output JSON file.
+    #[arg(short, long)]
+    pub output: PathBuf,
 }

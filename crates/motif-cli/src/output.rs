@@ -32,6 +32,12 @@ pub fn exit_code(err: &anyhow::Error) -> u8 {
         if let Some(e) = cause.downcast_ref::<motif_core::Error>() {
             return if e.is_bad_input() { 2 } else { 1 };
         }
+        if let Some(e) = cause.downcast_ref::<motif_retarget::Error>() {
+            return match e {
+                motif_retarget::Error::Io { source, .. } => io_exit_code(source),
+                _ => 2,
+            };
+        }
     }
     1
 }
@@ -51,6 +57,17 @@ pub fn describe(err: &anyhow::Error) -> String {
         msg.push_str(&text);
     }
     msg
+}
+
+/// 2 when a file could not be read because of what the user named (missing, a directory), 1 for
+/// other system failures.
+fn io_exit_code(e: &std::io::Error) -> u8 {
+    use std::io::ErrorKind::*;
+    if matches!(e.kind(), NotFound | InvalidData | UnexpectedEof | IsADirectory | PermissionDenied) {
+        2
+    } else {
+        1
+    }
 }
 
 /// Refuses to write `output` when it is one of the `inputs` (same file after resolving links),

@@ -7,6 +7,7 @@ mod demo;
 mod example;
 mod features;
 mod info;
+mod mrf;
 mod normals;
 mod sample;
 
@@ -15,7 +16,7 @@ use std::path::Path;
 use anyhow::Context;
 use motif_core::io::{self, Model, PlyEncoding, StlEncoding, WriteOptions};
 
-use crate::cli::{Cli, Command, EncodingArgs, FeaturesCommand, PlyEncodingArg, StlEncodingArg};
+use crate::cli::{Cli, Command, EncodingArgs, FeaturesCommand, MrfCommand, PlyEncodingArg, StlEncodingArg};
 
 /// Dispatches a parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
@@ -28,6 +29,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Curvature(a) => curvature::run(a, g),
         Command::Features(FeaturesCommand::Shot(a)) => features::run_shot(a, g),
         Command::Align(a) => align::run(a, g),
+        Command::Mrf(MrfCommand::Solve(a)) => mrf::solve(a, g),
+        Command::Mrf(MrfCommand::Generate(a)) => mrf::generate(a, g),
         Command::Example(a) => example::run(a, g),
         Command::Demo(a) => demo::run(a, g),
     }
