@@ -11,8 +11,9 @@ use motif_core::procedural::{
     Region, Symmetry, SymmetryKind, generate, reflection, rotation_about, symmetry_residual,
 };
 use motif_deform::symmetry_detect::{
-    CandidateStatus, GroupReport, PartialSymmetries, Scope, SymmetryDetectError, SymmetryDetectOptions,
-    SymmetryDetection, TransformMetric, detect_symmetries, group_closure, group_contains,
+    AnnotationContents, CandidateStatus, GroupReport, PartialSymmetries, Scope, SymmetryDetectError,
+    SymmetryDetectOptions, SymmetryDetection, TransformMetric, detect_symmetries, group_closure,
+    group_contains,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -237,6 +238,33 @@ fn an_asymmetric_shape_has_no_symmetry() {
 }
 
 #[test]
+fn approximate_symmetries_are_reported_and_optionally_annotated() {
+    // The chair with one leg's foot vertex pushed 3e-3 of the diagonal sideways: its mirror is
+    // then only approximate.
+    let mut mesh = generate("chair", 0).unwrap().mesh;
+    let diag = mesh.diagonal();
+    let lowest = (0..mesh.num_vertices())
+        .min_by(|&a, &b| {
+            let (p, q) = (mesh.positions[a], mesh.positions[b]);
+            (p[1], p[0]).partial_cmp(&(q[1], q[0])).unwrap()
+        })
+        .unwrap();
+    mesh.positions[lowest][2] += 3e-3 * diag;
+    let o = SymmetryDetectOptions { partial: PartialSymmetries::Off, ..Default::default() };
+    let d = detect_symmetries(&mesh, &o).unwrap();
+    assert!(d.global_group().is_none(), "{:?}", d.global_group().map(|g| &g.name));
+    assert!(d.annotation.symmetries.is_empty());
+    let approx =
+        d.report.approximate.iter().find(|c| c.element.describe().starts_with("mirror")).expect("reported");
+    let r = approx.validation.unwrap().max;
+    assert!(r > 1e-3 && r < 1e-2, "{r}");
+    let o = SymmetryDetectOptions { annotation: AnnotationContents::VerifiedAndApproximate, ..o };
+    let d = detect_symmetries(&mesh, &o).unwrap();
+    assert_eq!(d.annotation.tolerance, 1e-2);
+    assert_eq!(d.global_group().map(|g| g.structure.order), Some(2));
+}
+
+#[test]
 fn annotation_is_well_formed_json() {
     let ex = generate("chair", 0).unwrap();
     let d = detect_symmetries(&ex.mesh, &SymmetryDetectOptions::default()).unwrap();
@@ -356,15 +384,15 @@ fn run_data(dir: &Path, select: impl Fn(&serde_json::Value) -> bool) -> (Vec<Str
         };
         let (d, wall, cpu) = timed_detect(&mesh, &SymmetryDetectOptions::default());
         let g = d.global_group();
-        let (axes, mirrors) = g.map_or((Vec::new(), 0), |g| {
-            (g.structure.rotation_axes.clone(), g.structure.mirror_normals.len())
+        let (orders, mirrors) = g.map_or((Vec::new(), 0), |g| {
+            (g.structure.rotation_orders.clone(), g.structure.mirror_normals.len())
         });
         let mut ok = true;
         let mut names = Vec::new();
         for c in &claims {
             names.push(c["claim"].as_str().unwrap_or("?").to_string());
             let found = match parse_claim(c) {
-                Some(Claim::Rotation(n)) => axes.iter().any(|(_, k)| k % n == 0),
+                Some(Claim::Rotation(n)) => orders.contains(&n),
                 Some(Claim::Mirrors(k)) => mirrors >= k,
                 None => true,
             };

@@ -6,6 +6,7 @@
 
 use motif_core::Point3;
 use motif_core::geometry::{add, cross, dot, normalize, scale, sub};
+use rayon::prelude::*;
 
 /// Largest number of triangles in a leaf.
 const LEAF_SIZE: usize = 4;
@@ -54,9 +55,22 @@ impl TriangleBvh {
         let triangles: &[[Point3; 3]] = &split;
         let centroids: Vec<Point3> =
             triangles.iter().map(|t| scale(add(add(t[0], t[1]), t[2]), 1.0 / 3.0)).collect();
+        let boxes: Vec<(Point3, Point3)> = triangles
+            .par_iter()
+            .map(|t| {
+                let mut lo = t[0];
+                let mut hi = t[0];
+                for p in &t[1..] {
+                    for k in 0..3 {
+                        lo[k] = lo[k].min(p[k]);
+                        hi[k] = hi[k].max(p[k]);
+                    }
+                }
+                (lo, hi)
+            })
+            .collect();
         let mut order: Vec<u32> = (0..triangles.len() as u32).collect();
-        let mut nodes = Vec::with_capacity(2 * triangles.len() / LEAF_SIZE + 1);
-        build(&mut nodes, &mut order, 0, triangles, &centroids);
+        let nodes = build(&mut order, 0, &boxes, &centroids);
         let corners: Vec<[Point3; 3]> = order.iter().map(|&i| triangles[i as usize]).collect();
         let normals = corners
             .iter()
@@ -201,13 +215,12 @@ pub(crate) fn sort_spatially(points: &mut [Point3]) {
     let Some(b) = motif_core::geometry::Aabb::from_points(points) else { return };
     let ext = b.extent();
     let key = |p: &Point3| -> u64 {
+        let mut q = [0u64; 3];
+        for i in 0..3 {
+            let t = if ext[i] > 0.0 { (p[i] - b.min[i]) / ext[i] } else { 0.0 };
+            q[i] = (t.clamp(0.0, 1.0) * 2_097_151.0) as u64;
+        }
         let mut k = 0u64;
-        let q: Vec<u64> = (0..3)
-            .map(|i| {
-                let t = if ext[i] > 0.0 { (p[i] - b.min[i]) / ext[i] } else { 0.0 };
-                (t.clamp(0.0, 1.0) * 2_097_151.0) as u64
-            })
-            .collect();
         for bit in (0..21).rev() {
             for (i, v) in q.iter().enumerate() {
                 k |= ((v >> bit) & 1) << (3 * bit + 2 - i as u32);
@@ -215,7 +228,13 @@ pub(crate) fn sort_spatially(points: &mut [Point3]) {
         }
         k
     };
-    points.sort_by_cached_key(key);
+    let mut keyed: Vec<(u64, Point3)> = points.par_iter().map(|p| (key(p), *p)).collect();
+    keyed.par_sort_unstable_by(|a, b| {
+        a.0.cmp(&b.0).then(a.1.partial_cmp(&b.1).unwrap_or(std::cmp::Ordering::Equal))
+    });
+    for (dst, (_, p)) in points.iter_mut().zip(keyed) {
+        *dst = p;
+    }
 }
 
 fn dist2(a: Point3, b: Point3) -> f64 {
@@ -246,24 +265,20 @@ fn box_d2(n: &Node, q: Point3) -> f64 {
     s
 }
 
-/// Builds the subtree over `order[..]` (global offset `offset`) and returns its node index.
-fn build(
-    nodes: &mut Vec<Node>,
-    order: &mut [u32],
-    offset: usize,
-    tris: &[[Point3; 3]],
-    centroids: &[Point3],
-) -> u32 {
+/// Subtrees with more triangles than this are built in parallel.
+const PARALLEL_BUILD: usize = 8192;
+
+/// Bounds of the triangles and of their centroids.
+fn bounds(order: &[u32], boxes: &[(Point3, Point3)], centroids: &[Point3]) -> [Point3; 4] {
     let mut min = [f64::INFINITY; 3];
     let mut max = [f64::NEG_INFINITY; 3];
     let mut cmin = [f64::INFINITY; 3];
     let mut cmax = [f64::NEG_INFINITY; 3];
-    for &i in order.iter() {
-        for p in &tris[i as usize] {
-            for k in 0..3 {
-                min[k] = min[k].min(p[k]);
-                max[k] = max[k].max(p[k]);
-            }
+    for &i in order {
+        let (lo, hi) = boxes[i as usize];
+        for k in 0..3 {
+            min[k] = min[k].min(lo[k]);
+            max[k] = max[k].max(hi[k]);
         }
         let c = centroids[i as usize];
         for k in 0..3 {
@@ -271,19 +286,62 @@ fn build(
             cmax[k] = cmax[k].max(c[k]);
         }
     }
+    [min, max, cmin, cmax]
+}
+
+/// Builds the subtree over `order[..]` (whose first triangle is at global position `offset`)
+/// and returns its nodes in depth-first order, indices local to the subtree (the root is 0).
+/// Large subtrees build their two halves in parallel.
+fn build(order: &mut [u32], offset: usize, boxes: &[(Point3, Point3)], centroids: &[Point3]) -> Vec<Node> {
+    if order.len() <= PARALLEL_BUILD {
+        let mut nodes = Vec::with_capacity(order.len() / 2 + 1);
+        build_sequential(&mut nodes, order, offset, boxes, centroids);
+        return nodes;
+    }
+    let [min, max, cmin, cmax] = bounds(order, boxes, centroids);
+    let mid = sah_split(order, boxes, centroids, cmin, cmax);
+    let (lo, hi) = order.split_at_mut(mid);
+    let (left, right) =
+        rayon::join(|| build(lo, offset, boxes, centroids), || build(hi, offset + mid, boxes, centroids));
+    let right_at = 1 + left.len() as u32;
+    let mut nodes = Vec::with_capacity(1 + left.len() + right.len());
+    nodes.push(Node { min, max, start: offset as u32, count: 0, right: right_at });
+    for (subtree, shift) in [(left, 1), (right, right_at)] {
+        nodes.extend(subtree.into_iter().map(|mut x| {
+            if x.count == 0 {
+                x.right += shift;
+            }
+            x
+        }));
+    }
+    nodes
+}
+
+/// Builds the subtree over `order[..]` into `nodes` (global indices) and returns its root.
+fn build_sequential(
+    nodes: &mut Vec<Node>,
+    order: &mut [u32],
+    offset: usize,
+    boxes: &[(Point3, Point3)],
+    centroids: &[Point3],
+) -> u32 {
+    let [min, max, cmin, cmax] = bounds(order, boxes, centroids);
     let index = nodes.len() as u32;
     nodes.push(Node { min, max, start: offset as u32, count: order.len() as u32, right: 0 });
     if order.len() <= LEAF_SIZE {
         return index;
     }
-    let mid = sah_split(order, tris, centroids, cmin, cmax);
+    let mid = sah_split(order, boxes, centroids, cmin, cmax);
     let (lo, hi) = order.split_at_mut(mid);
     nodes[index as usize].count = 0;
-    build(nodes, lo, offset, tris, centroids);
-    let right = build(nodes, hi, offset + mid, tris, centroids);
+    build_sequential(nodes, lo, offset, boxes, centroids);
+    let right = build_sequential(nodes, hi, offset + mid, boxes, centroids);
     nodes[index as usize].right = right;
     index
 }
+
+/// Nodes with at most this many triangles are split at the median.
+const SAH_MIN: usize = 64;
 
 /// Bins of the surface-area-heuristic split.
 const BINS: usize = 16;
@@ -298,13 +356,15 @@ fn half_area(min: Point3, max: Point3) -> f64 {
 /// returns the size of the left part; falls back to the median on the longest centroid axis.
 fn sah_split(
     order: &mut [u32],
-    tris: &[[Point3; 3]],
+    boxes: &[(Point3, Point3)],
     centroids: &[Point3],
     cmin: Point3,
     cmax: Point3,
 ) -> usize {
     let mut best: Option<(f64, usize, usize)> = None; // (cost, axis, bins on the left)
-    for axis in 0..3 {
+    // Small nodes: the median is nearly as good and much cheaper.
+    let axes = if order.len() > SAH_MIN { 0..3 } else { 0..0 };
+    for axis in axes {
         let ext = cmax[axis] - cmin[axis];
         if ext.is_nan() || ext <= 0.0 {
             continue;
@@ -316,11 +376,10 @@ fn sah_split(
         for &i in order.iter() {
             let b = bin_of(centroids[i as usize][axis]);
             count[b] += 1;
-            for p in &tris[i as usize] {
-                for k in 0..3 {
-                    bmin[b][k] = bmin[b][k].min(p[k]);
-                    bmax[b][k] = bmax[b][k].max(p[k]);
-                }
+            let (lo, hi) = boxes[i as usize];
+            for k in 0..3 {
+                bmin[b][k] = bmin[b][k].min(lo[k]);
+                bmax[b][k] = bmax[b][k].max(hi[k]);
             }
         }
         // Sweep from the right to get the right-hand areas, then from the left.

@@ -166,6 +166,9 @@ pub struct GroupStructure {
     /// rotations by every multiple of `2π / n`, so every divisor of `n` is also a rotation order
     /// about that axis), highest order first.
     pub rotation_axes: Vec<(Point3, u32)>,
+    /// Every rotation order present, ascending: each divisor `≥ 2` of each axis's order (a
+    /// 10-fold axis also gives 5- and 2-fold rotations).
+    pub rotation_orders: Vec<u32>,
     /// Unit normals (canonical sign) of the mirror planes.
     pub mirror_normals: Vec<Point3>,
     /// Whether the inversion through the centre belongs to the group.
@@ -257,7 +260,18 @@ pub(crate) fn classify(elements: &[Mat4]) -> GroupStructure {
             format!("C{n}")
         }
     };
-    GroupStructure { schoenflies, order, rotation_axes: axes, mirror_normals: mirrors, inversion }
+    let mut rotation_orders: Vec<u32> =
+        axes.iter().flat_map(|(_, n)| (2..=*n).filter(move |d| n % d == 0)).collect();
+    rotation_orders.sort_unstable();
+    rotation_orders.dedup();
+    GroupStructure {
+        schoenflies,
+        order,
+        rotation_axes: axes,
+        rotation_orders,
+        mirror_normals: mirrors,
+        inversion,
+    }
 }
 
 /// The geometric element of a group transform: the rotation axis / mirror plane / centre placed
@@ -397,6 +411,7 @@ mod tests {
         assert_eq!(st.schoenflies, "C6v");
         assert_eq!(st.rotation_axes[0].1, 6);
         assert_eq!(st.mirror_normals.len(), 6);
+        assert_eq!(st.rotation_orders, vec![2, 3, 6]);
         let gens = choose_generators(&g, &st, &metric(), 1e-6);
         assert_eq!(gens.len(), 2);
         let h = reflection([0.0, 0.0, 1.0], [0.0; 3]);

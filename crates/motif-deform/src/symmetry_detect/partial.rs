@@ -16,13 +16,15 @@ use motif_core::mesh::TriMesh;
 use motif_core::progress::Progress;
 use motif_core::sampling::sample_surface;
 
+use super::assemble::AssembledGroup;
 use super::bvh::TriangleBvh;
 use super::candidates::principal_axes;
 use super::element::line_angle;
 use super::error::Result;
 use super::group::{self, Kind, group_closure, group_contains, kind_of};
 use super::residual::Surface;
-use super::{AssembledGroup, CandidateReport, PartReport, Scope, Shape, SymmetryDetectOptions, Timings};
+use super::shape::Shape;
+use super::{CandidateReport, PartReport, Scope, SymmetryDetectOptions, Timings};
 
 /// At most this many classes are analysed (the largest by area).
 const MAX_CLASSES: usize = 6;
@@ -30,6 +32,12 @@ const MAX_CLASSES: usize = 6;
 const MIN_CLASS_AREA: f64 = 0.01;
 /// Samples spread over the whole mesh to test which components a group maps onto the region.
 const REGION_SAMPLES: usize = 20_000;
+/// Vertices per component (evenly strided) added to its samples for that test.
+const COMPONENT_VERTICES: usize = 256;
+/// Validation samples of a part.
+const PART_SAMPLES: usize = 10_000;
+/// Vertices of a part (evenly strided) added to its validation samples.
+const PART_VERTICES: usize = 10_000;
 
 /// A partial symmetry: the index of the analysed class it came from, the group, the region.
 pub(crate) struct PartResult {
@@ -98,17 +106,24 @@ pub(crate) fn detect(
     }
     for (c, comp) in comps.iter().enumerate() {
         let mut seen = std::collections::HashSet::new();
+        let mut vertices = Vec::new();
         for &f in &comp.faces {
             for &v in &mesh.triangles[f] {
                 if seen.insert(v) {
-                    comp_points[c].push(mesh.positions[v as usize]);
+                    vertices.push(mesh.positions[v as usize]);
                 }
             }
         }
+        let stride = vertices.len().div_ceil(COMPONENT_VERTICES).max(1);
+        comp_points[c].extend(vertices.into_iter().step_by(stride));
     }
 
+    // Parts are validated on fewer points than the whole shape (a bonus must not dominate the
+    // run time): at most PART_SAMPLES samples and PART_VERTICES vertices.
+    let part_options =
+        SymmetryDetectOptions { validation_samples: o.validation_samples.min(PART_SAMPLES), ..o.clone() };
     let global_metric = whole.metric();
-    let global_merge = super::merge_distance(whole, tol);
+    let global_merge = super::assemble::merge_distance(whole, tol);
     let mut parts: Vec<PartReport> = Vec::new();
     let mut out: Vec<PartResult> = Vec::new();
     let mut emitted: Vec<(usize, Vec<u32>)> = Vec::new();
@@ -116,11 +131,15 @@ pub(crate) fn detect(
     for (k, (_, class)) in classes.iter().enumerate() {
         progress.inc(1);
         let faces: Vec<usize> = class.iter().flat_map(|&i| comps[i].faces.iter().copied()).collect();
-        let shape = Shape::new(mesh, &faces, diag, o, o.seed.wrapping_add(k as u64 + 1))?;
+        let seed = o.seed.wrapping_add(k as u64 + 1);
+        let shape = Shape::new(mesh, &faces, diag, &part_options, seed, PART_VERTICES)?;
         let part = parts.len();
-        let analysis = super::analyse(&shape, o, Scope::Part(part), reports, &mut timings, progress);
+        let analysis =
+            super::search::analyse(&shape, &part_options, Scope::Part(part), reports, &mut timings, progress);
         parts.push(PartReport { components: class.len(), faces: faces.len(), center: shape.center });
-        let Some(g) = super::assemble(&shape, &analysis, o, tol, include_approx) else { continue };
+        let Some(g) = super::assemble::assemble(&shape, &analysis, &part_options, tol, include_approx) else {
+            continue;
+        };
         // Nothing new when the whole shape already has every element.
         if g.elements.iter().all(|m| group_contains(global, m, &global_metric, global_merge)) {
             continue;
@@ -190,7 +209,7 @@ fn face_components(mesh: &TriMesh, comps: &[Component]) -> Vec<Option<usize>> {
 /// and mirror planes containing it), then `Cn` (the rotations), largest first, without repeats.
 fn subgroups(g: &AssembledGroup, shape: &Shape, tol: f64) -> Vec<AssembledGroup> {
     let metric = shape.metric();
-    let merge = super::merge_distance(shape, tol);
+    let merge = super::assemble::merge_distance(shape, tol);
     let mut out = vec![AssembledGroup {
         name: g.name.clone(),
         elements: g.elements.clone(),
@@ -220,7 +239,7 @@ fn subgroups(g: &AssembledGroup, shape: &Shape, tol: f64) -> Vec<AssembledGroup>
         {
             continue;
         }
-        let name = super::group_name(&structure, &generators, g.center);
+        let name = super::assemble::group_name(&structure, &generators, g.center);
         out.push(AssembledGroup {
             name,
             elements,
