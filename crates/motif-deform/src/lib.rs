@@ -9,3 +9,5 @@
 
 /// The thesis chapter this crate implements, for reports and `--version` output.
 pub const THESIS_CHAPTER: &str = "3: real-time symmetry-preserving deformation";
+
+pub mod symmetry_detect;
