@@ -79,38 +79,6 @@ impl TriangleBvh {
         Some(TriangleBvh { nodes, corners, normals })
     }
 
-    #[cfg(test)]
-    fn count(&self, q: Point3, max_d2: f64) -> (usize, usize) {
-        let mut best_d2 = max_d2;
-        let mut stack = vec![0u32];
-        let (mut visits, mut tests) = (0, 0);
-        while let Some(i) = stack.pop() {
-            let node = &self.nodes[i as usize];
-            visits += 1;
-            if box_d2(node, q) >= best_d2 {
-                continue;
-            }
-            if node.count > 0 {
-                for t in node.start..node.start + node.count {
-                    tests += 1;
-                    let c = closest_on_triangle(q, &self.corners[t as usize]);
-                    best_d2 = best_d2.min(dist2(q, c));
-                }
-            } else {
-                let (l, r) = (i + 1, node.right);
-                let (dl, dr) = (box_d2(&self.nodes[l as usize], q), box_d2(&self.nodes[r as usize], q));
-                if dl <= dr {
-                    stack.push(r);
-                    stack.push(l);
-                } else {
-                    stack.push(l);
-                    stack.push(r);
-                }
-            }
-        }
-        (visits, tests)
-    }
-
     /// The closest surface point to `q` if it is closer than `sqrt(max_d2)`; `None` otherwise.
     /// The search stops refining once no box can be closer by more than `slack` (absolute): the
     /// distance returned is exact for the triangle found and at most `slack` above the true
@@ -538,57 +506,5 @@ mod tests {
         // A bound below the true distance finds nothing.
         let q = [5.0, 5.0, 5.0];
         assert!(bvh.closest(q, 1.0, 0.0).is_none());
-    }
-}
-
-#[cfg(test)]
-mod bench {
-    use super::*;
-
-    fn cpu_seconds() -> f64 {
-        let s = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
-        let f: Vec<&str> = s.rsplit(')').next().unwrap_or("").split_whitespace().collect();
-        let t = |i: usize| f.get(i).and_then(|x| x.parse::<f64>().ok()).unwrap_or(0.0);
-        (t(11) + t(12)) / 100.0
-    }
-
-    #[test]
-    #[ignore]
-    fn query_speed() {
-        let path = std::env::var("BENCH_MESH").unwrap_or_default();
-        let mesh = match motif_core::io::read_mesh(std::path::Path::new(&path)) {
-            Ok(m) => m,
-            Err(_) => motif_core::procedural::generate("windmill_100k", 0).unwrap().mesh,
-        };
-        let tris: Vec<[Point3; 3]> = (0..mesh.num_triangles()).map(|f| mesh.corners(f)).collect();
-        let t = std::time::Instant::now();
-        let bvh = TriangleBvh::new(&tris).unwrap();
-        println!("build {:.1} ms, {} nodes", t.elapsed().as_secs_f64() * 1e3, bvh.nodes.len());
-        let mut s = motif_core::sampling::sample_surface(&mesh, 100_000, 1).unwrap().points;
-        if std::env::var("SORTED").is_ok() {
-            sort_spatially(&mut s);
-        }
-        let diag = mesh.diagonal();
-        for (label, off) in [("on surface", 0.0), ("offset 1e-3", 1e-3), ("offset 1e-2", 1e-2)] {
-            let q: Vec<Point3> = s.iter().map(|p| add(*p, [off * diag, 0.0, 0.0])).collect();
-            let c0 = cpu_seconds();
-            let t = std::time::Instant::now();
-            let mut acc = 0.0;
-            for p in &q {
-                acc += bvh.closest(*p, (0.05 * diag).powi(2), 1e-10 * diag).map_or(0.0, |h| h.d2);
-            }
-            let (mut nv, mut nt) = (0usize, 0usize);
-            for p in q.iter().take(10_000) {
-                let (a, b) = bvh.count(*p, (0.05 * diag).powi(2));
-                nv += a;
-                nt += b;
-            }
-            println!("  visits {:.1} tri tests {:.1}", nv as f64 / 1e4, nt as f64 / 1e4);
-            println!(
-                "{label}: {:.3} us/query wall, {:.3} us cpu ({acc:.3e})",
-                t.elapsed().as_secs_f64() * 1e6 / q.len() as f64,
-                (cpu_seconds() - c0) * 1e6 / q.len() as f64
-            );
-        }
     }
 }
