@@ -50,6 +50,9 @@ pub enum Command {
     Features(FeaturesCommand),
     /// Rigidly align one shape to another with ICP.
     Align(AlignArgs),
+    /// Symmetries: detect them automatically, or check an annotation against a mesh.
+    #[command(subcommand)]
+    Symmetry(SymmetryCommand),
     /// Multi-label MRF problems (alpha-expansion on Boykov–Kolmogorov max-flow).
     #[command(subcommand)]
     Mrf(MrfCommand),
@@ -350,4 +353,32 @@ pub struct MrfGenerateArgs {
     /// Output JSON file.
     #[arg(short, long)]
     pub output: PathBuf,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum SymmetryCommand {
+    /// Find global reflection planes and rotational symmetries and write a motif_symmetry_v1
+    /// annotation (validated by closest-point residual).
+    Detect(SymmetryDetectArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct SymmetryDetectArgs {
+    /// Input mesh.
+    pub mesh: PathBuf,
+    /// Output annotation (JSON, motif_symmetry_v1).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Accept a symmetry when the largest distance of transformed surface samples to the surface
+    /// is below this fraction of the bounding-box diagonal.
+    #[arg(long, default_value_t = 1e-3)]
+    pub tolerance: f64,
+    /// Highest rotation order tested.
+    #[arg(long, default_value_t = 24)]
+    pub max_order: u32,
+    /// Also annotate approximate symmetries (residual below 1e-2 of the diagonal).
+    #[arg(long)]
+    pub approximate: bool,
+    #[command(flatten)]
+    pub json: JsonArg,
 }

@@ -32,6 +32,18 @@ pub fn exit_code(err: &anyhow::Error) -> u8 {
         if let Some(e) = cause.downcast_ref::<motif_core::Error>() {
             return if e.is_bad_input() { 2 } else { 1 };
         }
+        if let Some(e) = cause.downcast_ref::<motif_deform::symmetry_detect::SymmetryDetectError>() {
+            return match e {
+                motif_deform::symmetry_detect::SymmetryDetectError::Core(c) => {
+                    if c.is_bad_input() {
+                        2
+                    } else {
+                        1
+                    }
+                }
+                _ => 2,
+            };
+        }
         if let Some(e) = cause.downcast_ref::<motif_retarget::Error>() {
             return match e {
                 motif_retarget::Error::Io { source, .. } => io_exit_code(source),

@@ -271,3 +271,26 @@ fn every_bad_file_in_the_corpus_exits_2_with_a_named_error() {
     }
     assert!(checked >= 40, "the corpus has {checked} files");
 }
+
+#[test]
+fn symmetry_detect_writes_an_annotation_and_mrf_solve_reports_energy() {
+    let d = tmp();
+    assert!(motif(&["example", "chair", "chair.obj"], d.path()).status.success());
+    let r = json_of(&motif(&["symmetry", "detect", "chair.obj", "-o", "chair.sym.json", "--json"], d.path()));
+    let groups = r["report"]["groups"].as_array().unwrap();
+    assert!(groups.iter().any(|g| g["structure"]["order"] == 2), "the chair's mirror: {groups:?}");
+    let ann: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.path().join("chair.sym.json")).unwrap()).unwrap();
+    assert_eq!(ann["format"], "motif_symmetry_v1");
+    assert_eq!(ann["symmetries"][0]["generators"].as_array().map(|g| g.len()), Some(1));
+
+    let o = motif(&["mrf", "generate", "--dims", "6,5,4", "--labels", "5", "-o", "p.json"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r = json_of(&motif(&["mrf", "solve", "p.json", "--json"], d.path()));
+    assert_eq!(r["labels_flat"].as_array().unwrap().len(), 120);
+    assert!(r["energy"].as_i64().unwrap() <= r["initial_energy"].as_i64().unwrap());
+    std::fs::write(d.path().join("bad.json"), r#"{"format": "mrf_grid_v1", "dims": [2, 2]}"#).unwrap();
+    let o = motif(&["mrf", "solve", "bad.json"], d.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("bad.json"), "{}", stderr(&o));
+}

@@ -10,13 +10,16 @@ mod info;
 mod mrf;
 mod normals;
 mod sample;
+mod symmetry;
 
 use std::path::Path;
 
 use anyhow::Context;
 use motif_core::io::{self, Model, PlyEncoding, StlEncoding, WriteOptions};
 
-use crate::cli::{Cli, Command, EncodingArgs, FeaturesCommand, MrfCommand, PlyEncodingArg, StlEncodingArg};
+use crate::cli::{
+    Cli, Command, EncodingArgs, FeaturesCommand, MrfCommand, PlyEncodingArg, StlEncodingArg, SymmetryCommand,
+};
 
 /// Dispatches a parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
@@ -29,6 +32,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Curvature(a) => curvature::run(a, g),
         Command::Features(FeaturesCommand::Shot(a)) => features::run_shot(a, g),
         Command::Align(a) => align::run(a, g),
+        Command::Symmetry(SymmetryCommand::Detect(a)) => symmetry::detect(a, g),
         Command::Mrf(MrfCommand::Solve(a)) => mrf::solve(a, g),
         Command::Mrf(MrfCommand::Generate(a)) => mrf::generate(a, g),
         Command::Example(a) => example::run(a, g),

@@ -1,0 +1,89 @@
+//! `motif symmetry`: automatic detection of global symmetries (and, with the deformation engine,
+//! checking annotations).
+
+use std::time::Instant;
+
+use motif_deform::symmetry_detect::{
+    AnnotationContents, Scope, SymmetryDetectOptions, detect_symmetries_with_progress,
+};
+use serde::Serialize;
+
+use crate::cli::{GlobalArgs, SymmetryDetectArgs};
+use crate::output::{bad_input, check_output, maybe_json, ms_since, write_json};
+use crate::progress::Bar;
+
+#[derive(Debug, Serialize)]
+struct DetectReport<'a> {
+    mesh: String,
+    annotation: String,
+    options: &'a SymmetryDetectOptions,
+    ms: f64,
+    report: &'a motif_deform::symmetry_detect::SymmetryReport,
+}
+
+pub fn detect(a: SymmetryDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    if !(a.tolerance > 0.0 && a.tolerance < 0.1) {
+        return Err(bad_input(format!(
+            "--tolerance {}: use a small positive fraction such as 1e-3",
+            a.tolerance
+        )));
+    }
+    if !(2..=360).contains(&a.max_order) {
+        return Err(bad_input(format!("--max-order {}: use 2 to 360", a.max_order)));
+    }
+    let mesh = motif_core::io::read_mesh(&a.mesh)?;
+    check_output(&a.output, &[&a.mesh], g.force)?;
+    let options = SymmetryDetectOptions {
+        tolerance: a.tolerance,
+        approximate_tolerance: (10.0 * a.tolerance).max(1e-2),
+        max_rotation_order: a.max_order,
+        annotation: if a.approximate {
+            AnnotationContents::VerifiedAndApproximate
+        } else {
+            AnnotationContents::Verified
+        },
+        seed: g.seed,
+        ..Default::default()
+    };
+    let t = Instant::now();
+    let bar = Bar::new(g.quiet);
+    let det = detect_symmetries_with_progress(&mesh, &options, &bar)?;
+    let ms = ms_since(t);
+    write_json(&a.output, &det.annotation)?;
+    let stdout_json = crate::output::json_on_stdout(&a.json.json);
+    if !stdout_json && !g.quiet {
+        let global = det.report.groups.iter().filter(|gr| gr.scope == Scope::Global).count();
+        if global == 0 {
+            println!("no global symmetry within {:.0e} of the diagonal", a.tolerance);
+        }
+        for gr in &det.report.groups {
+            let scope = match gr.scope {
+                Scope::Global => "global".to_string(),
+                Scope::Part(i) => format!("part {i}"),
+            };
+            println!(
+                "{scope:<8} {} ; max residual {:.1e} of the diagonal{}",
+                gr.name,
+                gr.max_residual,
+                if gr.possibly_continuous { " (possibly a surface of revolution)" } else { "" }
+            );
+        }
+        if !det.report.approximate.is_empty() {
+            println!(
+                "{} approximate symmetries (residual < {:.0e}) not annotated{}",
+                det.report.approximate.len(),
+                options.approximate_tolerance,
+                if a.approximate { "" } else { "; --approximate adds them" }
+            );
+        }
+        eprintln!("wrote {} ({:.0} ms)", a.output.display(), ms);
+    }
+    let report = DetectReport {
+        mesh: a.mesh.display().to_string(),
+        annotation: a.output.display().to_string(),
+        options: &options,
+        ms,
+        report: &det.report,
+    };
+    maybe_json(&a.json.json, &report)
+}
