@@ -241,7 +241,10 @@ impl HandleSystem {
             Ok(l) => l,
             Err(faer::linalg::solvers::LltError::NonPositivePivot { index }) => {
                 if options.regularization == 0.0 {
-                    return Err(DeformError::Unconstrained { components: 1, position: orbit_seed_of_col(index) });
+                    return Err(DeformError::Unconstrained {
+                        components: 1,
+                        position: orbit_seed_of_col(index),
+                    });
                 }
                 return Err(DeformError::Factorization(format!("non-positive pivot at column {index}")));
             }
@@ -250,7 +253,10 @@ impl HandleSystem {
         // A numerically singular K can factor with tiny pivots: treat it as singular.
         let tiny: Vec<usize> = (0..d).filter(|&i| l[(i, i)] * l[(i, i)] <= 1e-14 * max_diag).collect();
         if let Some(&first) = tiny.first() {
-            return Err(DeformError::Unconstrained { components: tiny.len(), position: orbit_seed_of_col(first) });
+            return Err(DeformError::Unconstrained {
+                components: tiny.len(),
+                position: orbit_seed_of_col(first),
+            });
         }
         let lt = l.transpose().to_owned();
         Ok(HandleSystem { samples: handle_samples, l, lt, alpha })

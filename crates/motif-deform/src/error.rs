@@ -80,7 +80,9 @@ pub enum DeformError {
         limit: usize,
     },
     /// A region selects no vertex of the mesh.
-    #[error("{what} selects no vertex of the mesh: check its indices, box or sphere against the mesh's bounds")]
+    #[error(
+        "{what} selects no vertex of the mesh: check its indices, box or sphere against the mesh's bounds"
+    )]
     EmptyRegion {
         /// Which region ("symmetry \"fan\"", "handle 2", "instance 3 of symmetry \"legs\"").
         what: String,
@@ -126,7 +128,9 @@ pub enum DeformError {
         limit: usize,
     },
     /// `set_handles` was given no handle.
-    #[error("no handles: the deformation is undetermined; select at least one handle region (fixed or moved)")]
+    #[error(
+        "no handles: the deformation is undetermined; select at least one handle region (fixed or moved)"
+    )]
     NoHandles,
     /// A handle region contains vertices but no sample point.
     #[error(
@@ -142,7 +146,9 @@ pub enum DeformError {
         radius: f64,
     },
     /// Two handles select the same sample point.
-    #[error("handles {first} and {second} overlap (both select the sample at {position:?}): make their regions disjoint")]
+    #[error(
+        "handles {first} and {second} overlap (both select the sample at {position:?}): make their regions disjoint"
+    )]
     OverlappingHandles {
         /// The first handle.
         first: usize,
@@ -201,7 +207,9 @@ impl DeformError {
             DeformError::Core(e) => e.is_bad_input(),
             DeformError::Io { source, .. } => matches!(
                 source.kind(),
-                std::io::ErrorKind::NotFound | std::io::ErrorKind::InvalidData | std::io::ErrorKind::IsADirectory
+                std::io::ErrorKind::NotFound
+                    | std::io::ErrorKind::InvalidData
+                    | std::io::ErrorKind::IsADirectory
             ),
             DeformError::Factorization(_) | DeformError::NonFinite => false,
             _ => true,

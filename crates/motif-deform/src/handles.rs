@@ -74,10 +74,14 @@ impl HandlesFile {
     }
 
     fn parse(json: &str, what: &str) -> Result<HandlesFile> {
-        let f: HandlesFile =
-            serde_json::from_str(json).map_err(|source| DeformError::Json { what: what.to_string(), source })?;
+        let f: HandlesFile = serde_json::from_str(json)
+            .map_err(|source| DeformError::Json { what: what.to_string(), source })?;
         if f.format != HANDLES_FORMAT {
-            return Err(DeformError::WrongFormat { what: what.to_string(), expected: HANDLES_FORMAT, found: f.format });
+            return Err(DeformError::WrongFormat {
+                what: what.to_string(),
+                expected: HANDLES_FORMAT,
+                found: f.format,
+            });
         }
         for (i, fr) in f.frames.iter().enumerate() {
             if fr.len() != f.handles.len() {
@@ -96,8 +100,8 @@ impl HandlesFile {
 
     /// Reads a handles file.
     pub fn read(path: &Path) -> Result<HandlesFile> {
-        let text =
-            std::fs::read_to_string(path).map_err(|source| DeformError::Io { path: path.to_path_buf(), source })?;
+        let text = std::fs::read_to_string(path)
+            .map_err(|source| DeformError::Io { path: path.to_path_buf(), source })?;
         Self::parse(&text, &path.display().to_string())
     }
 

@@ -155,9 +155,8 @@ pub(crate) fn best_rotation(s: nalgebra::Matrix3<f64>) -> Mat3 {
     let v = v_t.transpose();
     let mut r = v * u.transpose();
     if r.determinant() < 0.0 {
-        let k = (0..3)
-            .min_by(|&a, &b| svd.singular_values[a].total_cmp(&svd.singular_values[b]))
-            .unwrap_or(2);
+        let k =
+            (0..3).min_by(|&a, &b| svd.singular_values[a].total_cmp(&svd.singular_values[b])).unwrap_or(2);
         for row in 0..3 {
             u[(row, k)] = -u[(row, k)];
         }

@@ -49,8 +49,8 @@ pub use laplace::SamplingGraph;
 pub use lift::{LiftOptions, LiftSupport, Lifting};
 pub use mat3::Mat3;
 pub use residual::{
-    AnnotationReport, ElementResidual, InducedMap, ResidualReport, SymmetryCheck, SymmetryMaps, TransformCheck,
-    check_annotation, induced_vertex_map, symmetry_residual,
+    AnnotationReport, ElementResidual, InducedMap, ResidualReport, SymmetryCheck, SymmetryMaps,
+    TransformCheck, check_annotation, induced_vertex_map, symmetry_residual,
 };
 pub use session::{
     AnnotationValidation, DeformOptions, DeformResult, DeformSession, DeformStats, HandleFit, SymmetryMode,

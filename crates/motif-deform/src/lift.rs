@@ -150,7 +150,8 @@ impl Lifting {
                     .collect();
                 let fallback = row.is_empty();
                 if fallback {
-                    let found: Vec<(usize, f64)> = (0..n).map(|l| (l, dist(x, sampling.positions[l]))).collect();
+                    let found: Vec<(usize, f64)> =
+                        (0..n).map(|l| (l, dist(x, sampling.positions[l]))).collect();
                     let dmin = found.iter().map(|f| f.1).fold(f64::INFINITY, f64::min);
                     row = found.iter().filter(|f| f.1 <= dmin + tie).map(|f| (f.0 as u32, 1.0)).collect();
                 }
@@ -247,7 +248,11 @@ fn generating_maps(resolved: &ResolvedAnnotation) -> Vec<GenMap> {
         match &s.kind {
             ResolvedKind::Group { region, generators, .. } => {
                 for g in generators {
-                    maps.push(GenMap { transform: *g, symbol: region.symbol, domain: region.vertices.clone() });
+                    maps.push(GenMap {
+                        transform: *g,
+                        symbol: region.symbol,
+                        domain: region.vertices.clone(),
+                    });
                 }
             }
             ResolvedKind::Instances { instances, transforms, inverses } => {
@@ -333,7 +338,8 @@ fn equivariant_supports(
                     .copied()
                     .filter(|&l| {
                         vmaps[k].iter().all(|&(mi, j)| {
-                            j == NONE || support[j as usize].binary_search(&images[mi as usize][l as usize]).is_ok()
+                            j == NONE
+                                || support[j as usize].binary_search(&images[mi as usize][l as usize]).is_ok()
                         })
                     })
                     .collect()

@@ -18,7 +18,9 @@ use crate::handles::Handle;
 use crate::laplace::SamplingGraph;
 use crate::lift::{LiftOptions, Lifting};
 use crate::residual::{SurfaceDistance, element_residual};
-use crate::symmetric_sampling::{SymmetricSampling, SymmetricSamplingOptions, add_orbits, symmetric_sampling};
+use crate::symmetric_sampling::{
+    SymmetricSampling, SymmetricSamplingOptions, add_orbits, symmetric_sampling,
+};
 
 /// Rounds of seeding orbits at vertices without a symmetry-consistent support.
 const MAX_SUPPORT_ROUNDS: usize = 4;
@@ -186,7 +188,11 @@ impl DeformSession {
     /// Precomputes everything that does not depend on the handles: resolves and validates the
     /// annotation (ignored with [`SymmetryMode::Ignore`]), samples symmetrically, builds the basis
     /// `U`, the sampling graph and Laplace coordinates, and the lifting matrix `W`.
-    pub fn new(mesh: &TriMesh, annotation: &SymmetryAnnotation, options: &DeformOptions) -> Result<DeformSession> {
+    pub fn new(
+        mesh: &TriMesh,
+        annotation: &SymmetryAnnotation,
+        options: &DeformOptions,
+    ) -> Result<DeformSession> {
         let diag = check_mesh(mesh)?;
         options.editing.validate()?;
         let mut warnings = Vec::new();
@@ -199,7 +205,9 @@ impl DeformSession {
                 validate_fit(mesh, &r, options.validation, &mut warnings)?;
                 r
             }
-            SymmetryMode::Ignore => ResolvedAnnotation::identity_only(diag, annotation.tolerance.clamp(1e-12, 0.5)),
+            SymmetryMode::Ignore => {
+                ResolvedAnnotation::identity_only(diag, annotation.tolerance.clamp(1e-12, 0.5))
+            }
         };
         timings.annotation_ms = ms(t);
         let t = Instant::now();
@@ -306,7 +314,10 @@ impl DeformSession {
     pub fn solve(&mut self, handle_transforms: &[Mat4]) -> Result<&[Point3]> {
         let sys = self.system.as_ref().ok_or(DeformError::HandlesNotSet)?;
         if handle_transforms.len() != sys.samples.len() {
-            return Err(DeformError::TransformCount { expected: sys.samples.len(), found: handle_transforms.len() });
+            return Err(DeformError::TransformCount {
+                expected: sys.samples.len(),
+                found: handle_transforms.len(),
+            });
         }
         for (h, m) in handle_transforms.iter().enumerate() {
             let affine = m[3] == [0.0, 0.0, 0.0, 1.0];
@@ -334,7 +345,9 @@ impl DeformSession {
         self.lifting.lift(&self.workspace.ubar, &self.rest, &mut self.positions);
         self.stats.timings.lift_ms = ms(t);
         let d = self.stats.diagonal;
-        for (f, (m, s2)) in self.fits.iter_mut().zip(self.workspace.fit_max.iter().zip(&self.workspace.fit_sq)) {
+        for (f, (m, s2)) in
+            self.fits.iter_mut().zip(self.workspace.fit_max.iter().zip(&self.workspace.fit_sq))
+        {
             f.max_error = m / d;
             f.rms_error = (s2 / f.samples.max(1) as f64).sqrt() / d;
         }

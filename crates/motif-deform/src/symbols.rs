@@ -1,14 +1,14 @@
 //! Which annotated regions a point lies in, as bit sets over the annotation's regions ("symbols").
 //!
-//! Two sets are used (see `lift.rs` for why):
+//! Two sets are used:
 //! - `has(p)`: every region containing `p` (a group's region, or any instance of an instance
 //!   set). A sample's orbit closure applies the maps of exactly these regions (thesis 3.4).
 //! - `required(p)`: the group regions containing `p`, plus for each instance set the *home*
 //!   instance of `p`: among the instances containing it, the one in whose template coordinates
-//!   `T_b⁻¹ p` is lexicographically smallest (ties: lowest index). A vertex or point may only be
-//!   influenced by samples `l` with `required(p) ⊆ has(l)`. The home rule makes points on the
-//!   shared boundary of two lattice cells pick the same side in every cell, so the rule commutes
-//!   with the lattice translations.
+//!   `T_b⁻¹ p` is lexicographically smallest (ties: lowest index). The per-region coverage pass of
+//!   symmetric sampling adds an orbit where a candidate `p` has no sample `l` within `r` with
+//!   `required(p) ⊆ has(l)`, so every region is sampled on its own (the lifting's equivariant
+//!   support, `lift.rs`, then finds samples of the right regions near every vertex).
 
 use std::collections::HashMap;
 
@@ -46,7 +46,11 @@ pub(crate) struct Symbols<'a> {
 
 impl<'a> Symbols<'a> {
     pub(crate) fn new(mesh: &TriMesh, resolved: &'a ResolvedAnnotation) -> Result<Self> {
-        Ok(Symbols { resolved, nearest: NearestVertex::new(mesh, resolved)?, words: resolved.num_symbols.div_ceil(64) })
+        Ok(Symbols {
+            resolved,
+            nearest: NearestVertex::new(mesh, resolved)?,
+            words: resolved.num_symbols.div_ceil(64),
+        })
     }
 
     pub(crate) fn empty(&self) -> Bits {
@@ -79,15 +83,7 @@ impl<'a> Symbols<'a> {
     /// The regions whose samples may influence the point `p` (see the module docs).
     pub(crate) fn point_required(&self, p: Point3) -> Bits {
         let nearest = self.nearest.get(p);
-        self.required_with(p, |t| t.contains_point(p, nearest))
-    }
-
-    /// [`Symbols::point_required`] for mesh vertex `v` at `p` (its own region membership).
-    pub(crate) fn vertex_required(&self, v: usize, p: Point3) -> Bits {
-        self.required_with(p, |t| t.contains_vertex(v, p))
-    }
-
-    fn required_with(&self, p: Point3, inside: impl Fn(&crate::annotation::RegionTest) -> bool) -> Bits {
+        let inside = |t: &crate::annotation::RegionTest| t.contains_point(p, nearest);
         let tol = self.resolved.margin;
         let mut b = self.empty();
         for s in &self.resolved.symmetries {

@@ -251,9 +251,17 @@ impl Ctx<'_> {
                             queue.push_back(j);
                         }
                         let h = mat4_mul(&rigid_inverse(&o.paths[j]), &gq);
-                        let trivial = rigid_approx_eq(&h, &IDENTITY4, near_identity_lin, near_identity_lin * self.mesh_diag);
+                        let trivial = rigid_approx_eq(
+                            &h,
+                            &IDENTITY4,
+                            near_identity_lin,
+                            near_identity_lin * self.mesh_diag,
+                        );
                         if !trivial
-                            && !o.stabilizers.iter().any(|s| rigid_approx_eq(s, &h, 1e-9, 1e-9 * self.mesh_diag))
+                            && !o
+                                .stabilizers
+                                .iter()
+                                .any(|s| rigid_approx_eq(s, &h, 1e-9, 1e-9 * self.mesh_diag))
                         {
                             o.stabilizers.push(h);
                         }
@@ -532,8 +540,9 @@ pub fn symmetric_sampling(
                 let s = run(r)?;
                 runs += 1;
                 let count = s.s.positions.len() as f64;
-                let better =
-                    best.as_ref().is_none_or(|(_, b)| (count - target).abs() < (b.s.positions.len() as f64 - target).abs());
+                let better = best.as_ref().is_none_or(|(_, b)| {
+                    (count - target).abs() < (b.s.positions.len() as f64 - target).abs()
+                });
                 if better {
                     best = Some((r, s));
                 }
