@@ -6,8 +6,12 @@
 //!
 //! `Uᵀ(LᵀL + αAᵀA)U q = Uᵀ(αAᵀa + Lᵀ(δ' − L x̄))`,
 //!
-//! whose matrix only changes with the handle set: it is assembled densely (`dof × dof`) and
-//! Cholesky-factorised once per handle set (faer); each solve is two triangular solves. `A` selects
+//! whose matrix only changes with the handle set: it is assembled and Cholesky-factorised once
+//! per handle set (faer); each solve is two triangular solves. Small systems (fewer than
+//! [`DENSE_DOF_LIMIT`] unknowns) use a dense factorisation; larger ones a sparse supernodal one
+//! with a fill-reducing (AMD) ordering: every column of `U` touches one orbit, so `K` couples
+//! only orbits whose samples are within two graph steps, and the dense factor of a few thousand
+//! unknowns would be tens of megabytes read per solve. `A` selects
 //! the handle samples, `a` lists their desired displacements `T_h x̄_i − x̄_i`.
 //!
 //! Co-rotation (after Au et al. 2006): the first solve uses the rest Laplace coordinates
@@ -27,8 +31,16 @@
 //! targets to about 10⁻³ of the edit's size (reported as the fit error) while the system stays well
 //! conditioned (≲ 10¹¹) for a dense Cholesky in f64.
 
+use std::sync::Arc;
+
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::linalg::triangular_solve::{solve_lower_triangular_in_place, solve_upper_triangular_in_place};
-use faer::{Mat, Par, Side};
+use faer::sparse::linalg::cholesky::{
+    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
+};
+use faer::sparse::{SparseColMat, Triplet};
+use faer::{Conj, Mat, Par, Side};
 use serde::{Deserialize, Serialize};
 
 use motif_core::geometry::{Mat4, Point3, transform_point};
@@ -137,17 +149,66 @@ pub(crate) fn select_handle_samples(
     Ok(out)
 }
 
+/// Systems with fewer unknowns are factorised densely, larger ones sparsely.
+pub const DENSE_DOF_LIMIT: usize = 400;
+
+/// A Cholesky factor of `K = Uᵀ(LᵀL + αAᵀA + εI)U`.
+#[derive(Debug, Clone)]
+enum Factor {
+    /// Lower factor `L_K` and its transpose (column-major, for a fast backward solve).
+    Dense { l: Mat<f64>, lt: Mat<f64> },
+    /// Supernodal or simplicial factor with its fill-reducing permutation.
+    Sparse { symbolic: Arc<SymbolicCholesky<usize>>, values: Vec<f64> },
+}
+
 /// The factorised reduced system of one handle set.
 #[derive(Debug, Clone)]
 pub(crate) struct HandleSystem {
     /// Samples of each handle.
     pub(crate) samples: Vec<Vec<u32>>,
-    /// Lower Cholesky factor `L_K` of `K = Uᵀ(LᵀL + αAᵀA + εI)U`.
-    l: Mat<f64>,
-    /// `L_Kᵀ`, stored column-major for a fast backward solve.
-    lt: Mat<f64>,
+    factor: Factor,
     /// Absolute α.
     pub(crate) alpha: f64,
+}
+
+/// Scratch memory of the sparse triangular solves, allocated once per handle set.
+pub(crate) struct Scratch {
+    buf: MemBuffer,
+    req: StackReq,
+}
+
+impl Scratch {
+    fn new(req: StackReq) -> Scratch {
+        Scratch { buf: MemBuffer::new(req), req }
+    }
+}
+
+impl Clone for Scratch {
+    fn clone(&self) -> Self {
+        Scratch::new(self.req)
+    }
+}
+
+impl std::fmt::Debug for Scratch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Scratch").field("req", &self.req).finish()
+    }
+}
+
+/// Accumulates the lower triangle of `K`, densely or as triplets.
+enum Assembly {
+    Dense(Mat<f64>),
+    Sparse(Vec<Triplet<usize, usize, f64>>),
+}
+
+impl Assembly {
+    #[inline]
+    fn add(&mut self, row: usize, col: usize, v: f64) {
+        match self {
+            Assembly::Dense(m) => m[(row, col)] += v,
+            Assembly::Sparse(t) => t.push(Triplet { row, col, val: v }),
+        }
+    }
 }
 
 impl HandleSystem {
@@ -165,7 +226,11 @@ impl HandleSystem {
         let scale = graph.energy_scale();
         let alpha = options.alpha * scale;
         let eps = options.regularization * scale;
-        let mut k = Mat::<f64>::zeros(d, d);
+        let mut k = if d < DENSE_DOF_LIMIT {
+            Assembly::Dense(Mat::zeros(d, d))
+        } else {
+            Assembly::Sparse(Vec::new())
+        };
         // Uᵀ LᵀL U = Σ_i M_iᵀ M_i with M_i the block row i of L U.
         let mut row: Vec<(usize, Point3)> = Vec::new();
         for i in 0..n {
@@ -200,7 +265,7 @@ impl HandleSystem {
                 let (ca, va) = row[a];
                 for &(cb, vb) in &row[a..] {
                     let x = va[0] * vb[0] + va[1] * vb[1] + va[2] * vb[2];
-                    k[(cb, ca)] += x;
+                    k.add(cb, ca, x);
                 }
             }
         }
@@ -220,13 +285,11 @@ impl HandleSystem {
             for a in 0..v.len() {
                 for b in a..v.len() {
                     let x = v[a][0] * v[b][0] + v[a][1] * v[b][1] + v[a][2] * v[b][2];
-                    k[(c0 + b, c0 + a)] += w * x;
+                    k.add(c0 + b, c0 + a, w * x);
                 }
             }
         }
         // Only the lower triangle was filled.
-        let max_diag = (0..d).map(|i| k[(i, i)]).fold(0.0, f64::max);
-        let llt = k.llt(Side::Lower);
         let orbit_seed_of_col = |c: usize| -> Point3 {
             // Columns are numbered by orbit: find the sample owning column c.
             (0..n)
@@ -237,38 +300,101 @@ impl HandleSystem {
                 .map(|i| seeds[i])
                 .unwrap_or([f64::NAN; 3])
         };
-        let llt = match llt {
-            Ok(l) => l,
-            Err(faer::linalg::solvers::LltError::NonPositivePivot { index }) => {
-                if options.regularization == 0.0 {
-                    return Err(DeformError::Unconstrained {
-                        components: 1,
-                        position: orbit_seed_of_col(index),
-                    });
-                }
-                return Err(DeformError::Factorization(format!("non-positive pivot at column {index}")));
+        let singular = |index: usize| -> DeformError {
+            if options.regularization == 0.0 {
+                DeformError::Unconstrained { components: 1, position: orbit_seed_of_col(index) }
+            } else {
+                DeformError::Factorization(format!("non-positive pivot at column {index}"))
             }
         };
-        let l = llt.L().to_owned();
-        // A numerically singular K can factor with tiny pivots: treat it as singular.
-        let tiny: Vec<usize> = (0..d).filter(|&i| l[(i, i)] * l[(i, i)] <= 1e-14 * max_diag).collect();
-        if let Some(&first) = tiny.first() {
-            return Err(DeformError::Unconstrained {
-                components: tiny.len(),
-                position: orbit_seed_of_col(first),
-            });
-        }
-        let lt = l.transpose().to_owned();
-        Ok(HandleSystem { samples: handle_samples, l, lt, alpha })
+        let factor = match k {
+            Assembly::Dense(k) => {
+                let max_diag = (0..d).map(|i| k[(i, i)]).fold(0.0, f64::max);
+                let l = match k.llt(Side::Lower) {
+                    Ok(l) => l.L().to_owned(),
+                    Err(faer::linalg::solvers::LltError::NonPositivePivot { index }) => {
+                        return Err(singular(index));
+                    }
+                };
+                // A numerically singular K can factor with tiny pivots: treat it as singular.
+                let tiny: Vec<usize> =
+                    (0..d).filter(|&i| l[(i, i)] * l[(i, i)] <= 1e-14 * max_diag).collect();
+                if let Some(&first) = tiny.first() {
+                    return Err(DeformError::Unconstrained {
+                        components: tiny.len(),
+                        position: orbit_seed_of_col(first),
+                    });
+                }
+                let lt = l.transpose().to_owned();
+                Factor::Dense { l, lt }
+            }
+            Assembly::Sparse(triplets) => {
+                let a = SparseColMat::<usize, f64>::try_new_from_triplets(d, d, &triplets)
+                    .map_err(|e| DeformError::Factorization(format!("{e:?}")))?;
+                let symbolic = factorize_symbolic_cholesky(
+                    a.symbolic(),
+                    Side::Lower,
+                    SymmetricOrdering::Amd,
+                    CholeskySymbolicParams::default(),
+                )
+                .map_err(|e| DeformError::Factorization(format!("{e:?}")))?;
+                let mut values = vec![0.0; symbolic.len_val()];
+                let mut mem = MemBuffer::new(
+                    symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
+                );
+                let r = symbolic.factorize_numeric_llt(
+                    &mut values,
+                    a.as_ref(),
+                    Side::Lower,
+                    LltRegularization::default(),
+                    Par::Seq,
+                    MemStack::new(&mut mem),
+                    Default::default(),
+                );
+                if let Err(faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot { index }) = r {
+                    return Err(singular(index));
+                }
+                Factor::Sparse { symbolic: Arc::new(symbolic), values }
+            }
+        };
+        Ok(HandleSystem { samples: handle_samples, factor, alpha })
     }
 
-    /// Solves `K q = rhs` in place (allocation-free).
-    fn solve_in_place(&self, rhs: &mut Mat<f64>) {
+    /// Scratch memory needed by [`HandleSystem::solve_in_place`].
+    pub(crate) fn scratch(&self) -> Option<Scratch> {
+        match &self.factor {
+            Factor::Dense { .. } => None,
+            Factor::Sparse { symbolic, .. } => {
+                Some(Scratch::new(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq)))
+            }
+        }
+    }
+
+    /// Solves `K q = rhs` in place (allocation-free; `scratch` from [`HandleSystem::scratch`]).
+    fn solve_in_place(&self, rhs: &mut Mat<f64>, scratch: &mut Option<Scratch>) {
         if rhs.nrows() == 0 {
             return;
         }
-        solve_lower_triangular_in_place(self.l.as_ref(), rhs.as_mut(), Par::Seq);
-        solve_upper_triangular_in_place(self.lt.as_ref(), rhs.as_mut(), Par::Seq);
+        match (&self.factor, scratch) {
+            (Factor::Dense { l, lt }, _) => {
+                solve_lower_triangular_in_place(l.as_ref(), rhs.as_mut(), Par::Seq);
+                solve_upper_triangular_in_place(lt.as_ref(), rhs.as_mut(), Par::Seq);
+            }
+            (Factor::Sparse { symbolic, values }, Some(s)) => {
+                LltRef::new(symbolic, values).solve_in_place_with_conj(
+                    Conj::No,
+                    rhs.as_mut(),
+                    Par::Seq,
+                    MemStack::new(&mut s.buf),
+                );
+            }
+            (Factor::Sparse { .. }, None) => {}
+        }
+    }
+
+    /// True when the factor is sparse.
+    pub(crate) fn is_sparse(&self) -> bool {
+        matches!(self.factor, Factor::Sparse { .. })
     }
 }
 
@@ -285,11 +411,18 @@ pub(crate) struct Workspace {
     /// Per handle: largest and summed squared distance of its samples to their targets.
     pub(crate) fit_max: Vec<f64>,
     pub(crate) fit_sq: Vec<f64>,
+    scratch: Option<Scratch>,
 }
 
 impl Workspace {
-    pub(crate) fn new(dof: usize, samples: usize, handles: usize) -> Workspace {
+    pub(crate) fn new(
+        dof: usize,
+        samples: usize,
+        handles: usize,
+        system: Option<&HandleSystem>,
+    ) -> Workspace {
         Workspace {
+            scratch: system.and_then(HandleSystem::scratch),
             q: Mat::zeros(dof, 1),
             b_handles: vec![0.0; dof],
             ubar: vec![[0.0; 3]; samples],
@@ -353,7 +486,7 @@ pub(crate) fn solve_frame(
                 }
             }
         }
-        sys.solve_in_place(&mut ws.q);
+        sys.solve_in_place(&mut ws.q, &mut ws.scratch);
         for (l, o) in ws.ubar.iter_mut().enumerate() {
             let (c0, v) = basis.entries(l);
             let mut u = [0.0; 3];

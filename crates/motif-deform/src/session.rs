@@ -126,6 +126,8 @@ pub struct DeformStats {
     pub handle_samples: usize,
     /// Absolute α of the current handle set.
     pub alpha: f64,
+    /// True when eq. 3.4 is factorised sparsely (dof ≥ [`crate::editing::DENSE_DOF_LIMIT`]).
+    pub sparse_factor: bool,
     /// Co-rotation iterations per solve.
     pub iterations: usize,
     /// Timings.
@@ -256,7 +258,7 @@ impl DeformSession {
             timings,
             ..Default::default()
         };
-        let workspace = Workspace::new(basis.dof(), sampling.len(), 0);
+        let workspace = Workspace::new(basis.dof(), sampling.len(), 0, None);
         Ok(DeformSession {
             rest: mesh.positions.clone(),
             mesh: mesh.clone(),
@@ -278,6 +280,14 @@ impl DeformSession {
 
     /// Selects the handles' samples and factorises the reduced system (eq. 3.4) for them. The
     /// handles' own `transform`s are not used here (give them to [`DeformSession::solve`]).
+    ///
+    /// A sample belongs to a handle when its position lies in the handle's box or ball (enlarged
+    /// by 10⁻⁹ × the diagonal), or — for `vertices` / `faces` regions — when its nearest mesh vertex
+    /// is in the region; unions mix both rules per part. Errors: no handles
+    /// ([`DeformError::NoHandles`]), a region selecting no vertex ([`DeformError::EmptyRegion`]),
+    /// a handle selecting no sample ([`DeformError::HandleSelectsNoSample`]), two handles sharing
+    /// a sample ([`DeformError::OverlappingHandles`]), an undetermined system
+    /// ([`DeformError::Unconstrained`], only with `editing.regularization = 0`).
     pub fn set_handles(&mut self, handles: &[Handle]) -> Result<()> {
         let t = Instant::now();
         let selected = select_handle_samples(
@@ -294,7 +304,8 @@ impl DeformSession {
         self.stats.handles = handles.len();
         self.stats.handle_samples = system.samples.iter().map(Vec::len).sum();
         self.stats.alpha = system.alpha;
-        self.workspace = Workspace::new(self.basis.dof(), self.sampling.len(), handles.len());
+        self.workspace = Workspace::new(self.basis.dof(), self.sampling.len(), handles.len(), Some(&system));
+        self.stats.sparse_factor = system.is_sparse();
         self.fits = system
             .samples
             .iter()
