@@ -19,7 +19,10 @@ const SAMPLES: usize = 700;
 
 fn shape(name: &str) -> Example {
     match name {
-        // Resolution 15: about 200k vertices (vertex count grows quadratically).
+        // Vertex count grows quadratically with the resolution (about 890 · resolution²):
+        // 5 → 22k and 6 → 32k bracket libigl ARAP's 26k-vertex timing, 15 → 200k.
+        "windmill_22k" => windmill(&WindmillOptions { resolution: 5, ..Default::default() }).unwrap(),
+        "windmill_32k" => windmill(&WindmillOptions { resolution: 6, ..Default::default() }).unwrap(),
         "windmill_200k" => windmill(&WindmillOptions { resolution: 15, ..Default::default() }).unwrap(),
         _ => generate(name, 0).unwrap(),
     }
@@ -45,7 +48,7 @@ fn four_handles(mesh: &TriMesh) -> (Vec<Handle>, Vec<Mat4>) {
 
 fn bench(c: &mut Criterion) {
     let names = std::env::var("MOTIF_BENCH_SHAPES")
-        .unwrap_or_else(|_| "fan,windmill,windmill_100k,windmill_200k".into());
+        .unwrap_or_else(|_| "fan,windmill,windmill_22k,windmill_32k,windmill_100k,windmill_200k".into());
     for name in names.split(',').map(str::trim).filter(|s| !s.is_empty()) {
         let ex = shape(name);
         for mode in [SymmetryMode::Preserve, SymmetryMode::Ignore] {
@@ -63,12 +66,13 @@ fn bench(c: &mut Criterion) {
                 SymmetryMode::Ignore => "nosym",
             };
             eprintln!(
-                "{name}/{tag}: {} vertices, {} samples, {} orbits, dof {}, W nnz {}, session setup {setup:.0} ms \
+                "{name}/{tag}: {} vertices, {} samples, {} orbits, dof {}, SVDs/iteration {}, W nnz {}, session setup {setup:.0} ms \
                  (annotation {:.0}, sampling {:.0}, lift setup {:.0}, basis {:.0}), fit {:?}",
                 st.vertices,
                 st.samples,
                 st.orbits,
                 st.dof,
+                st.rotation_fits,
                 st.lift_nonzeros,
                 st.timings.annotation_ms,
                 st.timings.sampling_ms,

@@ -1,7 +1,7 @@
 //! Symmetry annotations (`motif_symmetry_v1`, thesis 3.2): parsing, group closure, validation of
 //! transforms, and resolution of regions to vertex sets and point tests.
 //!
-//! The serde types are motif-core's ([`SymmetryAnnotation`], [`Symmetry`], [`SymmetryKind`],
+//! The serde types are motif-core's ([`SymmetryAnnotation`], [`Symmetry`](motif_core::procedural::Symmetry), [`SymmetryKind`],
 //! [`Region`]); this module turns them into a [`ResolvedAnnotation`]:
 //! - a **group** symmetry becomes the closure of its generators (every product, deduplicated
 //!   within the annotation's tolerance; at most [`MAX_GROUP_ORDER`] elements), acting on its

@@ -22,6 +22,9 @@
 //! the whole sampling graph, since the graph, the deformed sampling and the fitted rotations
 //! commute with them (`R_{g(i)} = O_g R_i O_gᵀ`).
 //!
+//! Rotations are fitted once per orbit where a symmetry maps the seed's neighbourhood onto the
+//! sample's (see [`RotationPlan`]); elsewhere per sample.
+//!
 //! Each solve starts from the rest state, so the result depends only on the handle transforms (not
 //! on the previous frames).
 //!
@@ -49,7 +52,7 @@ use crate::annotation::RegionTest;
 use crate::basis::SymmetricBasis;
 use crate::error::{DeformError, Result};
 use crate::handles::Handle;
-use crate::laplace::SamplingGraph;
+use crate::laplace::{RotationPlan, SamplingGraph};
 use crate::mat3::{IDENTITY3, Mat3, mul_vec};
 
 /// Options of co-rotated Laplace editing (thesis 3.5).
@@ -441,6 +444,8 @@ impl Workspace {
 pub(crate) fn solve_frame(
     sys: &HandleSystem,
     graph: &SamplingGraph,
+    plan: &RotationPlan,
+    frames: &[Mat3],
     basis: &SymmetricBasis,
     rest: &[Point3],
     delta: &[Point3],
@@ -473,7 +478,7 @@ pub(crate) fn solve_frame(
         }
         if it > 0 {
             // δ' − δ with δ'_i = R_i δ_i, then Lᵀ(δ' − δ) (L is symmetric).
-            graph.fit_rotations(rest, &ws.deformed, &mut ws.rotations);
+            plan.fit_rotations(graph, frames, rest, &ws.deformed, &mut ws.rotations);
             for i in 0..rest.len() {
                 let r = mul_vec(&ws.rotations[i], delta[i]);
                 ws.resid[i] = [r[0] - delta[i][0], r[1] - delta[i][1], r[2] - delta[i][2]];

@@ -202,3 +202,136 @@ mod tests {
         assert!((m.determinant() - 1.0).abs() < 1e-12);
     }
 }
+
+/// Which samples can take their rotation from their orbit's seed: sample `l` with frame `O_l`
+/// qualifies when `O_l`'s motion maps the seed's graph neighbourhood exactly onto `l`'s (as
+/// samples of the same orbits, with displacements related by `O_l`). Then the covariance of `l` is
+/// `O_l S_seed O_lᵀ` and its best rotation `R_l = O_l R_seed O_lᵀ`: one SVD per orbit under a
+/// symmetry of the whole sampling graph (thesis 3.4, "redundancy-free").
+#[derive(Debug, Clone, PartialEq)]
+pub struct RotationPlan {
+    /// `source[l]`: the seed to copy from, or `u32::MAX` when `l` fits its own rotation.
+    source: Vec<u32>,
+    /// Samples that fit their own rotation.
+    own: Vec<u32>,
+}
+
+impl RotationPlan {
+    /// Builds the plan from the sampling's orbits, frames and the graph.
+    pub fn new(
+        graph: &SamplingGraph,
+        sampling: &crate::symmetric_sampling::SymmetricSampling,
+    ) -> Result<RotationPlan> {
+        let n = sampling.len();
+        let mut source = vec![u32::MAX; n];
+        if n > 0 && !sampling.orbits.iter().all(|o| o.len == 1) {
+            let tree = KdTree::new(&sampling.positions)?;
+            let tol = sampling.doublet_distance.max(1e-12);
+            let found: Vec<bool> = (0..n)
+                .into_par_iter()
+                .map(|l| {
+                    let o = &sampling.orbits[sampling.orbit_of[l] as usize];
+                    let s = o.start;
+                    if l == s || graph.neighbours(l).len() != graph.neighbours(s).len() {
+                        return false;
+                    }
+                    let ol = &sampling.frames[l];
+                    // The seed's frame is the identity; x_l = g(x_s) with linear part O_l.
+                    let t = {
+                        let m = crate::mat3::mul_vec(ol, sampling.positions[s]);
+                        let p = sampling.positions[l];
+                        [p[0] - m[0], p[1] - m[1], p[2] - m[2]]
+                    };
+                    let mut image = Vec::with_capacity(graph.neighbours(s).len());
+                    for &j in graph.neighbours(s) {
+                        let j = j as usize;
+                        let m = crate::mat3::mul_vec(ol, sampling.positions[j]);
+                        let q = [m[0] + t[0], m[1] + t[1], m[2] + t[2]];
+                        let hit = tree.within_unsorted(q, tol).into_iter().find(|c| {
+                            let c = c.index;
+                            sampling.orbit_of[c] == sampling.orbit_of[j] && {
+                                let oj = &sampling.orbits[sampling.orbit_of[j] as usize];
+                                let olj = crate::mat3::mul(ol, &sampling.frames[j]);
+                                oj.basis.iter().all(|v| {
+                                    let a = crate::mat3::mul_vec(&sampling.frames[c], *v);
+                                    let b = crate::mat3::mul_vec(&olj, *v);
+                                    (a[0] - b[0]).abs() + (a[1] - b[1]).abs() + (a[2] - b[2]).abs() < 1e-9
+                                })
+                            }
+                        });
+                        match hit {
+                            Some(c) => image.push(c.index as u32),
+                            None => return false,
+                        }
+                    }
+                    image.sort_unstable();
+                    image.as_slice() == graph.neighbours(l)
+                })
+                .collect();
+            for l in 0..n {
+                if found[l] {
+                    source[l] = sampling.orbits[sampling.orbit_of[l] as usize].start as u32;
+                }
+            }
+        }
+        let own = (0..n as u32).filter(|&l| source[l as usize] == u32::MAX).collect();
+        Ok(RotationPlan { source, own })
+    }
+
+    /// Number of samples that fit their own rotation (SVDs per iteration).
+    pub fn own_fits(&self) -> usize {
+        self.own.len()
+    }
+
+    /// [`SamplingGraph::fit_rotations`] following the plan: own fits (in parallel), then
+    /// `R_l = O_l R_seed O_lᵀ` for the others. Allocation-free.
+    pub fn fit_rotations(
+        &self,
+        graph: &SamplingGraph,
+        frames: &[Mat3],
+        rest: &[Point3],
+        deformed: &[Point3],
+        out: &mut [Mat3],
+    ) {
+        let fit_one = |i: usize| -> Mat3 {
+            let nb = graph.neighbours(i);
+            if nb.is_empty() {
+                return IDENTITY3;
+            }
+            let mut s = nalgebra::Matrix3::<f64>::zeros();
+            for &j in nb {
+                let j = j as usize;
+                let e = [rest[j][0] - rest[i][0], rest[j][1] - rest[i][1], rest[j][2] - rest[i][2]];
+                let f = [
+                    deformed[j][0] - deformed[i][0],
+                    deformed[j][1] - deformed[i][1],
+                    deformed[j][2] - deformed[i][2],
+                ];
+                for a in 0..3 {
+                    for b in 0..3 {
+                        s[(a, b)] += e[a] * f[b];
+                    }
+                }
+            }
+            best_rotation(s)
+        };
+        if self.own.len() >= 256 {
+            out.par_iter_mut()
+                .enumerate()
+                .with_min_len(64)
+                .filter(|(i, _)| self.source[*i] == u32::MAX)
+                .for_each(|(i, r)| *r = fit_one(i));
+        } else {
+            for &i in &self.own {
+                out[i as usize] = fit_one(i as usize);
+            }
+        }
+        for l in 0..out.len() {
+            let s = self.source[l];
+            if s != u32::MAX {
+                let o = &frames[l];
+                out[l] = crate::mat3::mul(&crate::mat3::mul(o, &out[s as usize]), &crate::mat3::transpose(o));
+            }
+        }
+    }
+}

@@ -7,7 +7,7 @@
 //! Pipeline (one module per step):
 //! 1. [`annotation`]: parse `motif_symmetry_v1`, close groups, resolve regions (3.2);
 //!    [`check_annotation`] measures how well each transform fits the shape.
-//! 2. [`symmetric_sampling`]: Poisson-disc sampling closed under the symmetries, with local frames
+//! 2. [`mod@symmetric_sampling`]: Poisson-disc sampling closed under the symmetries, with local frames
 //!    and reduced bases on invariant sets (3.4).
 //! 3. [`basis`]: the basis `U` of symmetry-preserving displacements of the sampling (3.4).
 //! 4. [`lift`]: Gaussian partition-of-unity weights `W` carrying sample displacements to the mesh (3.4).
@@ -45,7 +45,7 @@ pub use basis::SymmetricBasis;
 pub use editing::EditingOptions;
 pub use error::{DeformError, Result};
 pub use handles::{HANDLES_FORMAT, Handle, HandlesFile};
-pub use laplace::SamplingGraph;
+pub use laplace::{RotationPlan, SamplingGraph};
 pub use lift::{LiftOptions, LiftSupport, Lifting};
 pub use mat3::Mat3;
 pub use residual::{

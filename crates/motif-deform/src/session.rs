@@ -15,7 +15,7 @@ use crate::basis::SymmetricBasis;
 use crate::editing::{EditingOptions, HandleSystem, Workspace, select_handle_samples, solve_frame};
 use crate::error::{DeformError, Result};
 use crate::handles::Handle;
-use crate::laplace::SamplingGraph;
+use crate::laplace::{RotationPlan, SamplingGraph};
 use crate::lift::{LiftOptions, Lifting};
 use crate::residual::{SurfaceDistance, element_residual};
 use crate::symmetric_sampling::{
@@ -113,6 +113,8 @@ pub struct DeformStats {
     pub radius: f64,
     /// Edges of the sampling graph.
     pub graph_edges: usize,
+    /// Rotations fitted by SVD per co-rotation iteration (the others follow their orbit's seed).
+    pub rotation_fits: usize,
     /// Non-zeros of the lifting matrix `W`.
     pub lift_nonzeros: usize,
     /// Vertices with an empty symmetry-consistent support, lifted from their nearest samples
@@ -171,6 +173,7 @@ pub struct DeformSession {
     sampling: SymmetricSampling,
     basis: SymmetricBasis,
     graph: SamplingGraph,
+    plan: RotationPlan,
     delta: Vec<Point3>,
     lifting: Lifting,
     options: DeformOptions,
@@ -232,6 +235,7 @@ impl DeformSession {
         let t = Instant::now();
         let basis = SymmetricBasis::new(&sampling);
         let graph = SamplingGraph::new(&sampling.positions, sampling.radius)?;
+        let plan = RotationPlan::new(&graph, &sampling)?;
         let mut delta = vec![[0.0; 3]; sampling.len()];
         graph.apply_laplacian(&sampling.positions, &mut delta);
         timings.basis_ms = ms(t);
@@ -251,6 +255,7 @@ impl DeformSession {
             dof: basis.dof(),
             radius: sampling.radius,
             graph_edges: graph.num_edges(),
+            rotation_fits: plan.own_fits(),
             lift_nonzeros: lifting.nnz(),
             fallback_vertices: lifting.fallback_vertices(),
             symmetries: resolved.symmetries.len(),
@@ -266,6 +271,7 @@ impl DeformSession {
             sampling,
             basis,
             graph,
+            plan,
             delta,
             lifting,
             options: options.clone(),
@@ -340,6 +346,8 @@ impl DeformSession {
         solve_frame(
             sys,
             &self.graph,
+            &self.plan,
+            &self.sampling.frames,
             &self.basis,
             &self.sampling.positions,
             &self.delta,
@@ -408,6 +416,11 @@ impl DeformSession {
     /// The sampling graph.
     pub fn graph(&self) -> &SamplingGraph {
         &self.graph
+    }
+
+    /// Which samples take their co-rotation from their orbit's seed.
+    pub fn rotation_plan(&self) -> &RotationPlan {
+        &self.plan
     }
 
     /// The lifting matrix `W`.

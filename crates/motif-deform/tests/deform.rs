@@ -188,6 +188,44 @@ fn co_rotated_laplace_coordinates_are_symmetric() {
 }
 
 #[test]
+fn rotations_shared_across_orbits_equal_per_sample_fits() {
+    for name in ["fan", "windmill", "shelf"] {
+        let (mesh, _ann, mut s) = session(name, SymmetryMode::Preserve);
+        let plan = s.rotation_plan().clone();
+        assert!(plan.own_fits() <= s.stats().samples);
+        if name == "fan" {
+            assert_eq!(plan.own_fits(), s.stats().orbits, "a global D6: one fit per orbit");
+        }
+        let (h, t) = random_edit(&mesh, 4);
+        s.set_handles(&h).unwrap();
+        s.solve(&t).unwrap();
+        let rest = s.sampling().positions.clone();
+        let def: Vec<Point3> = rest
+            .iter()
+            .zip(s.sample_displacements())
+            .map(|(x, u)| [x[0] + u[0], x[1] + u[1], x[2] + u[2]])
+            .collect();
+        let mut each = vec![[[0.0; 3]; 3]; rest.len()];
+        s.graph().fit_rotations(&rest, &def, &mut each);
+        let mut shared = vec![[[0.0; 3]; 3]; rest.len()];
+        plan.fit_rotations(s.graph(), &s.sampling().frames, &rest, &def, &mut shared);
+        let worst = each
+            .iter()
+            .zip(&shared)
+            .map(|(a, b)| {
+                (0..3).flat_map(|i| (0..3).map(move |j| (a[i][j] - b[i][j]).abs())).fold(0.0, f64::max)
+            })
+            .fold(0.0, f64::max);
+        println!(
+            "{name}: {} of {} samples fit their own rotation; largest difference {worst:.1e}",
+            plan.own_fits(),
+            rest.len()
+        );
+        assert!(worst < 1e-8, "{name}: {worst:.3e}");
+    }
+}
+
+#[test]
 fn a_sheet_on_its_own_mirror_plane_only_moves_in_plane() {
     // Every point of a flat sheet is fixed by the reflection in its plane: every orbit is
     // degenerate and keeps two in-plane directions (thesis Fig. 3.7b).
