@@ -66,13 +66,14 @@ fn bench(c: &mut Criterion) {
                 SymmetryMode::Ignore => "nosym",
             };
             eprintln!(
-                "{name}/{tag}: {} vertices, {} samples, {} orbits, dof {}, SVDs/iteration {}, W nnz {}, session setup {setup:.0} ms \
+                "{name}/{tag}: {} vertices, {} samples, {} orbits, dof {}, SVDs/iteration {}, W rows {} nnz {}, session setup {setup:.0} ms \
                  (annotation {:.0}, sampling {:.0}, lift setup {:.0}, basis {:.0}), fit {:?}",
                 st.vertices,
                 st.samples,
                 st.orbits,
                 st.dof,
                 st.rotation_fits,
+                st.lift_rows,
                 st.lift_nonzeros,
                 st.timings.annotation_ms,
                 st.timings.sampling_ms,
@@ -92,8 +93,9 @@ fn bench(c: &mut Criterion) {
             });
             let ubar = s.sample_displacements().to_vec();
             let mut out = ex.mesh.positions.clone();
+            let mut work = vec![[0.0; 3]; s.lifting().num_rows()];
             g.bench_function("lift", |b| {
-                b.iter(|| s.lifting().lift(black_box(&ubar), &ex.mesh.positions, &mut out))
+                b.iter(|| s.lifting().lift(black_box(&ubar), &ex.mesh.positions, &mut work, &mut out))
             });
             g.finish();
         }

@@ -46,7 +46,7 @@ pub use editing::EditingOptions;
 pub use error::{DeformError, Result};
 pub use handles::{HANDLES_FORMAT, Handle, HandlesFile};
 pub use laplace::{RotationPlan, SamplingGraph};
-pub use lift::{LiftOptions, LiftSupport, Lifting};
+pub use lift::{LiftEvaluation, LiftOptions, LiftSupport, Lifting};
 pub use mat3::Mat3;
 pub use residual::{
     AnnotationReport, ElementResidual, InducedMap, ResidualReport, SymmetryCheck, SymmetryMaps,

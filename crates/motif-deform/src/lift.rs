@@ -38,6 +38,8 @@
 //! 10⁻⁹ × the diagonal share); counted in [`Lifting::fallback_vertices`]. Exactness is not
 //! guaranteed at those vertices.
 
+use std::collections::HashMap;
+
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -47,6 +49,7 @@ use motif_core::spatial::KdTree;
 
 use crate::annotation::{ResolvedAnnotation, ResolvedKind};
 use crate::error::{DeformError, Result};
+use crate::mat3::{IDENTITY3, Mat3, linear_part, mul as mul3, mul_vec};
 use crate::residual::{induced_map, one_ring_means};
 use crate::symbols::get_bit;
 use crate::symmetric_sampling::SymmetricSampling;
@@ -61,6 +64,18 @@ pub enum LiftSupport {
     AllSamples,
 }
 
+/// How the lift is evaluated per frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LiftEvaluation {
+    /// One row of `W` per vertex-orbit representative; the other vertices of the orbit get the
+    /// representative's displacement turned by the orbit frame, `u_{φ(k)} = O u_k` (default: the
+    /// same result up to rounding, with symmetry structural and a fraction of the memory traffic).
+    PerOrbit,
+    /// One row of `W` per vertex.
+    PerVertex,
+}
+
 /// Options of the lifting (thesis 3.4).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -73,20 +88,37 @@ pub struct LiftOptions {
     pub cutoff: f64,
     /// Which samples may influence a vertex; default [`LiftSupport::Equivariant`].
     pub support: LiftSupport,
+    /// Per orbit or per vertex; default [`LiftEvaluation::PerOrbit`] (only with the equivariant
+    /// support).
+    pub evaluation: LiftEvaluation,
 }
 
 impl Default for LiftOptions {
     fn default() -> Self {
-        LiftOptions { sigma: 1.0, cutoff: 1e-3, support: LiftSupport::Equivariant }
+        LiftOptions {
+            sigma: 1.0,
+            cutoff: 1e-3,
+            support: LiftSupport::Equivariant,
+            evaluation: LiftEvaluation::PerOrbit,
+        }
     }
 }
 
-/// The lifting matrix `W` (`#V × #S`, rows sum to 1).
+/// The lifting matrix `W` (`#V × #S`, rows sum to 1), stored for the vertex-orbit
+/// representatives (all vertices with [`LiftEvaluation::PerVertex`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Lifting {
+    /// CSR rows, one per representative.
     start: Vec<usize>,
     cols: Vec<u32>,
     weights: Vec<f64>,
+    /// Vertex of each row.
+    row_vertex: Vec<u32>,
+    /// Per vertex: its representative's row and the frame (index into `frames`, 0 = identity)
+    /// turning the representative's displacement into its own.
+    slot: Vec<u32>,
+    frame: Vec<u32>,
+    frames: Vec<Mat3>,
     fallback: usize,
     fallback_rows: Vec<bool>,
 }
@@ -132,14 +164,28 @@ impl Lifting {
                 v
             })
             .collect();
+        let nv = positions.len();
+        // Per vertex: representative and frame (identity: every vertex is its own representative).
+        let mut rep: Vec<u32> = (0..nv as u32).collect();
+        let mut frame = vec![0u32; nv];
+        let mut frames = vec![IDENTITY3];
         if options.support == LiftSupport::Equivariant && !resolved.symmetries.is_empty() {
-            equivariant_supports(mesh, resolved, sampling, &tree, &mut support)?;
+            let (maps, vmaps) = equivariant_supports(mesh, resolved, sampling, &tree, &mut support)?;
+            if options.evaluation == LiftEvaluation::PerOrbit {
+                vertex_orbits(&maps, &vmaps, &mut rep, &mut frame, &mut frames);
+            }
         }
         let n = sampling.len();
-        let rows: Vec<(Vec<(u32, f64)>, bool)> = positions
+        let row_vertex: Vec<u32> = (0..nv as u32).filter(|&k| rep[k as usize] == k).collect();
+        let mut slot_of = vec![0u32; nv];
+        for (i, &k) in row_vertex.iter().enumerate() {
+            slot_of[k as usize] = i as u32;
+        }
+        let slot: Vec<u32> = rep.iter().map(|&r| slot_of[r as usize]).collect();
+        let rows: Vec<(Vec<(u32, f64)>, bool)> = row_vertex
             .par_iter()
-            .zip(&support)
-            .map(|(&x, sup)| {
+            .map(|&k| {
+                let (x, sup) = (positions[k as usize], &support[k as usize]);
                 let mut row: Vec<(u32, f64)> = sup
                     .iter()
                     .filter_map(|&l| {
@@ -162,33 +208,39 @@ impl Lifting {
                 (row, fallback)
             })
             .collect();
-        let mut start = Vec::with_capacity(positions.len() + 1);
+        let mut start = Vec::with_capacity(row_vertex.len() + 1);
         start.push(0);
         let nnz: usize = rows.iter().map(|r| r.0.len()).sum();
         let mut cols = Vec::with_capacity(nnz);
         let mut weights = Vec::with_capacity(nnz);
-        let mut fallback = 0;
-        let mut fallback_rows = Vec::with_capacity(positions.len());
+        let mut fallback_row = Vec::with_capacity(row_vertex.len());
         for (row, fb) in rows {
-            fallback += fb as usize;
-            fallback_rows.push(fb);
+            fallback_row.push(fb);
             for (l, w) in row {
                 cols.push(l);
                 weights.push(w);
             }
             start.push(cols.len());
         }
-        Ok(Lifting { start, cols, weights, fallback, fallback_rows })
+        let fallback_rows: Vec<bool> = slot.iter().map(|&s| fallback_row[s as usize]).collect();
+        let fallback = fallback_rows.iter().filter(|b| **b).count();
+        Ok(Lifting { start, cols, weights, row_vertex, slot, frame, frames, fallback, fallback_rows })
     }
 
-    /// Number of non-zero weights.
+    /// Number of non-zero weights stored.
     pub fn nnz(&self) -> usize {
         self.cols.len()
     }
 
-    /// Number of vertices (rows).
+    /// Number of vertices.
     pub fn num_vertices(&self) -> usize {
-        self.start.len() - 1
+        self.slot.len()
+    }
+
+    /// Number of stored rows (vertex-orbit representatives; all vertices per vertex). The
+    /// `work` buffer of [`Lifting::lift`] has this length.
+    pub fn num_rows(&self) -> usize {
+        self.row_vertex.len()
     }
 
     /// Vertices whose support was empty (lifted from their nearest samples; exactness is not
@@ -209,16 +261,24 @@ impl Lifting {
         seeds
     }
 
-    /// Row `k`: sample indices and normalised weights.
-    pub fn row(&self, k: usize) -> (&[u32], &[f64]) {
-        let r = self.start[k]..self.start[k + 1];
-        (&self.cols[r.clone()], &self.weights[r])
+    /// How vertex `k` is lifted: its representative vertex, that vertex's row (sample indices and
+    /// normalised weights) and the frame `O` with `u_k = O u_rep`.
+    pub fn row(&self, k: usize) -> (usize, &[u32], &[f64], Mat3) {
+        let s = self.slot[k] as usize;
+        let r = self.start[s]..self.start[s + 1];
+        (
+            self.row_vertex[s] as usize,
+            &self.cols[r.clone()],
+            &self.weights[r],
+            self.frames[self.frame[k] as usize],
+        )
     }
 
-    /// `out = rest + W ū`, parallel over vertices; allocation-free.
-    pub fn lift(&self, ubar: &[Point3], rest: &[Point3], out: &mut [Point3]) {
-        out.par_iter_mut().with_min_len(2048).enumerate().for_each(|(k, o)| {
-            let (a, b) = (self.start[k], self.start[k + 1]);
+    /// `out = rest + W ū`: the representatives' rows into `work` (length [`Lifting::num_rows`]),
+    /// then every vertex from its representative; parallel, allocation-free.
+    pub fn lift(&self, ubar: &[Point3], rest: &[Point3], work: &mut [Point3], out: &mut [Point3]) {
+        work.par_iter_mut().with_min_len(1024).enumerate().for_each(|(s, o)| {
+            let (a, b) = (self.start[s], self.start[s + 1]);
             let mut u = [0.0; 3];
             for (l, w) in self.cols[a..b].iter().zip(&self.weights[a..b]) {
                 let v = ubar[*l as usize];
@@ -226,9 +286,69 @@ impl Lifting {
                 u[1] += w * v[1];
                 u[2] += w * v[2];
             }
+            *o = u;
+        });
+        out.par_iter_mut().with_min_len(4096).enumerate().for_each(|(k, o)| {
+            let u = work[self.slot[k] as usize];
+            let f = self.frame[k];
+            let u = if f == 0 { u } else { mul_vec(&self.frames[f as usize], u) };
             let x = rest[k];
             *o = [x[0] + u[0], x[1] + u[1], x[2] + u[2]];
         });
+    }
+}
+
+/// Vertex orbits under the generating maps (breadth-first from the lowest index): every vertex
+/// gets the orbit's first vertex as representative and the frame `O` (product of the maps' linear
+/// parts along the path) with `u_k = O u_rep`.
+fn vertex_orbits(
+    maps: &[GenMap],
+    vmaps: &[Vec<(u32, u32)>],
+    rep: &mut [u32],
+    frame: &mut [u32],
+    frames: &mut Vec<Mat3>,
+) {
+    let nv = rep.len();
+    let mut seen = vec![false; nv];
+    let mut index: HashMap<[i64; 9], u32> = HashMap::new();
+    let key = |m: &Mat3| -> [i64; 9] {
+        let mut k = [0i64; 9];
+        for i in 0..3 {
+            for j in 0..3 {
+                k[3 * i + j] = (m[i][j] * 1e9).round() as i64;
+            }
+        }
+        k
+    };
+    index.insert(key(&IDENTITY3), 0);
+    let lin: Vec<Mat3> = maps.iter().map(|m| linear_part(&m.transform)).collect();
+    let mut queue = std::collections::VecDeque::new();
+    for k0 in 0..nv {
+        if seen[k0] {
+            continue;
+        }
+        seen[k0] = true;
+        rep[k0] = k0 as u32;
+        frame[k0] = 0;
+        queue.push_back(k0);
+        while let Some(k) = queue.pop_front() {
+            for &(mi, j) in &vmaps[k] {
+                if j == NONE || seen[j as usize] {
+                    continue;
+                }
+                let j = j as usize;
+                let o = mul3(&lin[mi as usize], &frames[frame[k] as usize]);
+                let next = frames.len() as u32;
+                let f = *index.entry(key(&o)).or_insert_with(|| {
+                    frames.push(o);
+                    next
+                });
+                seen[j] = true;
+                rep[j] = k0 as u32;
+                frame[j] = f;
+                queue.push_back(j);
+            }
+        }
     }
 }
 
@@ -278,7 +398,7 @@ fn equivariant_supports(
     sampling: &SymmetricSampling,
     sample_tree: &KdTree,
     support: &mut [Vec<u32>],
-) -> Result<()> {
+) -> Result<(Vec<GenMap>, Vec<Vec<(u32, u32)>>)> {
     let maps = generating_maps(resolved);
     let nv = mesh.num_vertices();
     let ns = sampling.len();
@@ -348,7 +468,7 @@ fn equivariant_supports(
         let changed = next.iter().zip(support.iter()).any(|(a, b)| a.len() != b.len());
         support.iter_mut().zip(next).for_each(|(s, n)| *s = n);
         if !changed {
-            return Ok(());
+            return Ok((maps, vmaps));
         }
     }
 }

@@ -115,8 +115,11 @@ pub struct DeformStats {
     pub graph_edges: usize,
     /// Rotations fitted by SVD per co-rotation iteration (the others follow their orbit's seed).
     pub rotation_fits: usize,
-    /// Non-zeros of the lifting matrix `W`.
+    /// Non-zeros of the lifting matrix `W` as stored (representative rows only with
+    /// [`crate::LiftEvaluation::PerOrbit`]).
     pub lift_nonzeros: usize,
+    /// Rows of `W` stored (vertex-orbit representatives, or all vertices).
+    pub lift_rows: usize,
     /// Vertices with an empty symmetry-consistent support, lifted from their nearest samples
     /// (exactness not guaranteed there).
     pub fallback_vertices: usize,
@@ -180,6 +183,7 @@ pub struct DeformSession {
     system: Option<HandleSystem>,
     workspace: Workspace,
     positions: Vec<Point3>,
+    lift_work: Vec<Point3>,
     fits: Vec<HandleFit>,
     warnings: Vec<String>,
     stats: DeformStats,
@@ -257,6 +261,7 @@ impl DeformSession {
             graph_edges: graph.num_edges(),
             rotation_fits: plan.own_fits(),
             lift_nonzeros: lifting.nnz(),
+            lift_rows: lifting.num_rows(),
             fallback_vertices: lifting.fallback_vertices(),
             symmetries: resolved.symmetries.len(),
             iterations: options.editing.iterations,
@@ -264,6 +269,7 @@ impl DeformSession {
             ..Default::default()
         };
         let workspace = Workspace::new(basis.dof(), sampling.len(), 0, None);
+        let lift_work = vec![[0.0; 3]; lifting.num_rows()];
         Ok(DeformSession {
             rest: mesh.positions.clone(),
             mesh: mesh.clone(),
@@ -278,6 +284,7 @@ impl DeformSession {
             system: None,
             workspace,
             positions: mesh.positions.clone(),
+            lift_work,
             fits: Vec::new(),
             warnings,
             stats,
@@ -361,7 +368,7 @@ impl DeformSession {
             return Err(DeformError::NonFinite);
         }
         let t = Instant::now();
-        self.lifting.lift(&self.workspace.ubar, &self.rest, &mut self.positions);
+        self.lifting.lift(&self.workspace.ubar, &self.rest, &mut self.lift_work, &mut self.positions);
         self.stats.timings.lift_ms = ms(t);
         let d = self.stats.diagonal;
         for (f, (m, s2)) in
