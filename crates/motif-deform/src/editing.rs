@@ -205,6 +205,47 @@ enum Assembly {
 }
 
 impl Assembly {
+    /// `K v` from the lower triangle.
+    fn mul(&self, v: &[f64], d: usize) -> Vec<f64> {
+        let mut out = vec![0.0; d];
+        match self {
+            Assembly::Dense(m) => {
+                for c in 0..d {
+                    for r in c..d {
+                        let x = m[(r, c)];
+                        out[r] += x * v[c];
+                        if r != c {
+                            out[c] += x * v[r];
+                        }
+                    }
+                }
+            }
+            Assembly::Sparse(t) => {
+                for e in t {
+                    out[e.row] += e.val * v[e.col];
+                    if e.row != e.col {
+                        out[e.col] += e.val * v[e.row];
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// Largest diagonal entry.
+    fn max_diag(&self, d: usize) -> f64 {
+        match self {
+            Assembly::Dense(m) => (0..d).map(|i| m[(i, i)]).fold(0.0, f64::max),
+            Assembly::Sparse(t) => {
+                let mut diag = vec![0.0; d];
+                for e in t.iter().filter(|e| e.row == e.col) {
+                    diag[e.row] += e.val;
+                }
+                diag.into_iter().fold(0.0, f64::max)
+            }
+        }
+    }
+
     #[inline]
     fn add(&mut self, row: usize, col: usize, v: f64) {
         match self {
@@ -310,8 +351,12 @@ impl HandleSystem {
                 DeformError::Factorization(format!("non-positive pivot at column {index}"))
             }
         };
+        let mut k_copy: Option<Assembly> = None;
         let factor = match k {
             Assembly::Dense(k) => {
+                if options.regularization == 0.0 {
+                    k_copy = Some(Assembly::Dense(k.clone()));
+                }
                 let max_diag = (0..d).map(|i| k[(i, i)]).fold(0.0, f64::max);
                 let l = match k.llt(Side::Lower) {
                     Ok(l) => l.L().to_owned(),
@@ -357,10 +402,48 @@ impl HandleSystem {
                 if let Err(faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot { index }) = r {
                     return Err(singular(index));
                 }
+                if options.regularization == 0.0 {
+                    k_copy = Some(Assembly::Sparse(triplets));
+                }
                 Factor::Sparse { symbolic: Arc::new(symbolic), values }
             }
         };
-        Ok(HandleSystem { samples: handle_samples, factor, alpha })
+        let sys = HandleSystem { samples: handle_samples, factor, alpha };
+        // Without regularisation, a singular K may still factor with rounding-level pivots:
+        // estimate its smallest eigenvalue by inverse iteration and refuse near-singular systems.
+        if let Some(k) = k_copy
+            && d > 0
+        {
+            let (lambda, x) = sys.smallest_eigenpair(&k, d);
+            let max_diag = k.max_diag(d);
+            if !(lambda > 1e-13 * max_diag) {
+                let col = (0..d).max_by(|&a, &b| x[a].abs().total_cmp(&x[b].abs())).unwrap_or(0);
+                return Err(DeformError::Unconstrained { components: 1, position: orbit_seed_of_col(col) });
+            }
+        }
+        Ok(sys)
+    }
+
+    /// Estimate of the smallest eigenvalue of `K` (and its eigenvector) by a few steps of inverse
+    /// iteration with the factor.
+    fn smallest_eigenpair(&self, k: &Assembly, d: usize) -> (f64, Vec<f64>) {
+        let mut scratch = self.scratch();
+        let mut x = Mat::<f64>::from_fn(d, 1, |i, _| 1.0 + ((i * 7919) % 101) as f64 / 101.0);
+        let mut lambda = f64::INFINITY;
+        for _ in 0..6 {
+            let n = (0..d).map(|i| x[(i, 0)] * x[(i, 0)]).sum::<f64>().sqrt();
+            if !(n > 0.0 && n.is_finite()) {
+                return (0.0, vec![0.0; d]);
+            }
+            for i in 0..d {
+                x[(i, 0)] /= n;
+            }
+            let v: Vec<f64> = (0..d).map(|i| x[(i, 0)]).collect();
+            let kv = k.mul(&v, d);
+            lambda = v.iter().zip(&kv).map(|(a, b)| a * b).sum();
+            self.solve_in_place(&mut x, &mut scratch);
+        }
+        ((lambda).max(0.0), (0..d).map(|i| x[(i, 0)]).collect())
     }
 
     /// Scratch memory needed by [`HandleSystem::solve_in_place`].

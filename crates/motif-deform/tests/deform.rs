@@ -448,8 +448,31 @@ fn unconstrained_parts_fail_without_regularisation() {
     o.sampling.spacing = SampleSpacing::Count(120);
     o.editing.regularization = 0.0;
     let mut s = DeformSession::new(&mesh, &ann, &o).unwrap();
+    assert!(s.stats().dof < 400, "dense path");
     let e = s.set_handles(&handles).unwrap_err();
     assert!(matches!(e, DeformError::Unconstrained { .. }), "{e}");
+    // The sparse path (more unknowns) detects it too.
+    o.sampling.spacing = SampleSpacing::Count(300);
+    let mut s = DeformSession::new(&mesh, &ann, &o).unwrap();
+    assert!(s.stats().dof >= 400, "sparse path");
+    let e = s.set_handles(&handles).unwrap_err();
+    assert!(matches!(e, DeformError::Unconstrained { .. }), "{e}");
+    if let DeformError::Unconstrained { position, .. } = e {
+        assert!(position[0] > 4.0, "the unconstrained part is the far box, got {position:?}");
+    }
+    // Well-posed systems pass the check without regularisation.
+    for name in ["fan", "windmill", "shelf", "gear"] {
+        let ex = generate(name, 0).unwrap();
+        let mut o = DeformOptions::default();
+        o.editing.regularization = 0.0;
+        for mode in [SymmetryMode::Preserve, SymmetryMode::Ignore] {
+            o.symmetry = mode;
+            let mut s = DeformSession::new(&ex.mesh, &ex.structure.symmetry, &o).unwrap();
+            let (h, t) = random_edit(&ex.mesh, 31);
+            s.set_handles(&h).unwrap_or_else(|e| panic!("{name} {mode:?}: {e}"));
+            s.solve(&t).unwrap();
+        }
+    }
     // With the default regularisation the free box simply stays.
     o.editing.regularization = 1e-8;
     let mut s = DeformSession::new(&mesh, &ann, &o).unwrap();
