@@ -416,7 +416,7 @@ impl HandleSystem {
         {
             let (lambda, x) = sys.smallest_eigenpair(&k, d);
             let max_diag = k.max_diag(d);
-            if !(lambda > 1e-13 * max_diag) {
+            if lambda.is_nan() || lambda <= 1e-13 * max_diag {
                 let col = (0..d).max_by(|&a, &b| x[a].abs().total_cmp(&x[b].abs())).unwrap_or(0);
                 return Err(DeformError::Unconstrained { components: 1, position: orbit_seed_of_col(col) });
             }
