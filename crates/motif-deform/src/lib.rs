@@ -18,6 +18,23 @@
 //! 7. [`residual`]: [`symmetry_residual`] measures eq. 3.2 on a deformed mesh with the induced
 //!    vertex maps φ of eq. 3.1.
 //!
+//! How exactness is achieved (and where this goes beyond the thesis text):
+//! - every `U q` is symmetric, so the sampling's displacement is exact whatever the solver does;
+//! - degenerate orbits (seeds on mirror planes / axes) are projected onto their invariant set, so
+//!   merged doublets coincide exactly, and their basis is reduced (thesis Fig. 3.7b);
+//! - the lift's weights depend on distance only and each vertex's support is the largest
+//!   symmetry-consistent one (a greatest fixpoint, `lift.rs`): this makes partial, nested and
+//!   tiled (instance-set) symmetries exact, not only global ones; where no consistent sample is in
+//!   reach (edges where lattice cells meet) an orbit is seeded at the vertex itself;
+//! - the Gaussian is shifted by its cut-off so weights vanish continuously (a hard cut-off would
+//!   turn rounding into 10⁻³ errors).
+//!
+//! Symmetry also saves work: co-rotations are fitted once per orbit where a symmetry maps the
+//! neighbourhood ([`RotationPlan`]), and the lift is evaluated once per vertex orbit and turned by
+//! the orbit frame ([`LiftEvaluation::PerOrbit`]). Measured (criterion medians, shared 2-core
+//! machine at load 5–8): a 200k-vertex windmill frame (5 iterations + lift) in about 5 ms, the
+//! prefactor at 700 samples in 10–20 ms.
+//!
 //! Conventions: positions `[f64; 3]` in mesh units; transforms row-major 4×4 on column vectors
 //! (`p' = M p`); "relative" tolerances and radii are multiples of the rest mesh's bounding-box
 //! diagonal. Handles follow `motif_handles_v1` ([`handles`]).
