@@ -1,0 +1,501 @@
+//! How well symmetries hold: [`check_annotation`] measures each transform of an annotation against
+//! the rest shape, [`SymmetryMaps`] holds the induced vertex maps φ of thesis eq. 3.1
+//! (`g ∘ x = x ∘ φ`), and [`symmetry_residual`] measures eq. 3.2 on a deformed mesh:
+//! `max_k |g(x_k + u_k) − (x + u)_{φ(k)}|`, relative to the rest shape's diagonal.
+
+use rayon::prelude::*;
+use serde::Serialize;
+
+use motif_core::TriMesh;
+use motif_core::geometry::{Mat4, Point3, add, dist, dot, scale, sub, transform_point};
+use motif_core::procedural::SymmetryAnnotation;
+use motif_core::spatial::KdTree;
+
+use crate::annotation::{ResolvedAnnotation, ResolvedKind, SymmetryElement, check_mesh, resolve_symmetry};
+use crate::error::Result;
+
+/// Distances from points to a triangle mesh's surface.
+pub(crate) struct SurfaceDistance<'a> {
+    mesh: &'a TriMesh,
+    tree: KdTree,
+    /// CSR vertex → incident triangles.
+    vt_start: Vec<u32>,
+    vt: Vec<u32>,
+    max_edge: f64,
+    exact_below: f64,
+}
+
+impl<'a> SurfaceDistance<'a> {
+    pub(crate) fn new(mesh: &'a TriMesh) -> Result<Self> {
+        let tree = KdTree::new(&mesh.positions)?;
+        let n = mesh.num_vertices();
+        let mut count = vec![0u32; n + 1];
+        let mut max_edge: f64 = 0.0;
+        for (f, t) in mesh.triangles.iter().enumerate() {
+            for &v in t {
+                count[v as usize + 1] += 1;
+            }
+            let [a, b, c] = mesh.corners(f);
+            max_edge = max_edge.max(dist(a, b)).max(dist(b, c)).max(dist(c, a));
+        }
+        for i in 0..n {
+            count[i + 1] += count[i];
+        }
+        let mut fill = count.clone();
+        let mut vt = vec![0u32; count[n] as usize];
+        for (f, t) in mesh.triangles.iter().enumerate() {
+            for &v in t {
+                vt[fill[v as usize] as usize] = f as u32;
+                fill[v as usize] += 1;
+            }
+        }
+        Ok(SurfaceDistance {
+            mesh,
+            tree,
+            vt_start: count,
+            vt,
+            max_edge,
+            exact_below: 1e-12 * mesh.diagonal(),
+        })
+    }
+
+    pub(crate) fn tree(&self) -> &KdTree {
+        &self.tree
+    }
+
+    /// Distance from `q` to the closest point on the surface (exactly: every triangle with a vertex
+    /// within `d_vertex + longest edge` is examined). Points closer than `10⁻¹² ×` the diagonal to
+    /// a vertex return that distance without looking at triangles.
+    pub(crate) fn distance(&self, q: Point3) -> f64 {
+        let nv = self.tree.nearest(q);
+        if nv.distance <= self.exact_below || self.mesh.triangles.is_empty() {
+            return nv.distance;
+        }
+        let mut best = nv.distance;
+        for n in self.tree.within_unsorted(q, nv.distance + self.max_edge) {
+            let v = n.index;
+            for &f in &self.vt[self.vt_start[v] as usize..self.vt_start[v + 1] as usize] {
+                let [a, b, c] = self.mesh.corners(f as usize);
+                best = best.min(dist(q, closest_point_on_triangle(q, a, b, c)));
+            }
+        }
+        best
+    }
+}
+
+/// The closest point to `p` on triangle `abc` (Ericson, Real-Time Collision Detection, 5.1.5).
+pub(crate) fn closest_point_on_triangle(p: Point3, a: Point3, b: Point3, c: Point3) -> Point3 {
+    let ab = sub(b, a);
+    let ac = sub(c, a);
+    let ap = sub(p, a);
+    let d1 = dot(ab, ap);
+    let d2 = dot(ac, ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = sub(p, b);
+    let d3 = dot(ab, bp);
+    let d4 = dot(ac, bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return add(a, scale(ab, v));
+    }
+    let cp = sub(p, c);
+    let d5 = dot(ab, cp);
+    let d6 = dot(ac, cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return add(a, scale(ac, w));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return add(b, scale(sub(c, b), w));
+    }
+    let denom = va + vb + vc;
+    if denom.abs() < f64::MIN_POSITIVE {
+        return a;
+    }
+    let v = vb / denom;
+    let w = vc / denom;
+    add(a, add(scale(ab, v), scale(ac, w)))
+}
+
+/// Largest distance from `g(x_k)`, `k` in the element's domain, to the surface, relative to the
+/// diagonal.
+pub(crate) fn element_residual(mesh: &TriMesh, surface: &SurfaceDistance, e: &SymmetryElement) -> f64 {
+    let worst = e
+        .domain
+        .par_iter()
+        .map(|&k| surface.distance(transform_point(&e.transform, mesh.positions[k as usize])))
+        .reduce(|| 0.0, f64::max);
+    worst / mesh.diagonal()
+}
+
+/// The check of one transform of a symmetry.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TransformCheck {
+    /// "element 3" or "instance 2 -> 0".
+    pub label: String,
+    /// The transform, row-major 4×4.
+    pub transform: Mat4,
+    /// Largest distance from a transformed region vertex to the surface (closest point on the
+    /// triangles), relative to the bounding-box diagonal.
+    pub residual: f64,
+    /// Number of region vertices transformed.
+    pub vertices: usize,
+    /// How many of them land on a mesh vertex within the tolerance (the domain of the induced
+    /// vertex map φ).
+    pub matched_vertices: usize,
+}
+
+/// The check of one symmetry.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SymmetryCheck {
+    /// The symmetry's name.
+    pub name: String,
+    /// "group" or "instances".
+    pub kind: &'static str,
+    /// Group order (closure of the generators), or number of instances.
+    pub order: usize,
+    /// Vertices in the region (groups) or in all instances together (instance sets).
+    pub region_vertices: usize,
+    /// Every non-identity group element, or for instance sets the maps between instance 0 and each
+    /// other instance, both ways.
+    pub transforms: Vec<TransformCheck>,
+    /// Largest residual over the transforms, relative to the diagonal.
+    pub max_residual: f64,
+    /// True when the symmetry resolved and every residual is within the tolerance.
+    pub ok: bool,
+    /// Why the symmetry could not be resolved (non-orthogonal transform, group too large, empty
+    /// region, ...), if so.
+    pub problem: Option<String>,
+}
+
+/// The report of [`check_annotation`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AnnotationReport {
+    /// Bounding-box diagonal of the mesh.
+    pub diagonal: f64,
+    /// The annotation's tolerance, relative to the diagonal.
+    pub tolerance: f64,
+    /// One entry per symmetry, in annotation order.
+    pub symmetries: Vec<SymmetryCheck>,
+    /// True when every symmetry is ok.
+    pub ok: bool,
+}
+
+/// Checks every symmetry of `annotation` against `mesh`: group order, and for every transform the
+/// largest distance from a transformed region vertex to the surface (closest point on triangles),
+/// relative to the diagonal, and how many vertices map exactly onto vertices (the induced vertex
+/// map φ). Problems of single symmetries are reported in the entries; errors are returned only for
+/// an unusable mesh or tolerance.
+pub fn check_annotation(mesh: &TriMesh, annotation: &SymmetryAnnotation) -> Result<AnnotationReport> {
+    let diagonal = check_mesh(mesh)?;
+    let tol = annotation.tolerance;
+    let empty = SymmetryAnnotation { symmetries: Vec::new(), ..annotation.clone() };
+    crate::annotation::resolve_annotation(mesh, &empty)?;
+    let surface = SurfaceDistance::new(mesh)?;
+    let neigh = one_ring_means(mesh);
+    let margin = crate::annotation::REGION_MARGIN * diagonal;
+    let mut symmetries = Vec::new();
+    for s in &annotation.symmetries {
+        let kind = match s.kind {
+            motif_core::procedural::SymmetryKind::Group { .. } => "group",
+            motif_core::procedural::SymmetryKind::Instances { .. } => "instances",
+        };
+        let mut sym_counter = 0;
+        match resolve_symmetry(mesh, s, diagonal, tol, margin, &mut sym_counter) {
+            Err(e) => symmetries.push(SymmetryCheck {
+                name: s.name.clone(),
+                kind,
+                order: 0,
+                region_vertices: 0,
+                transforms: Vec::new(),
+                max_residual: f64::INFINITY,
+                ok: false,
+                problem: Some(e.to_string()),
+            }),
+            Ok(None) => symmetries.push(SymmetryCheck {
+                name: s.name.clone(),
+                kind,
+                order: 0,
+                region_vertices: 0,
+                transforms: Vec::new(),
+                max_residual: 0.0,
+                ok: true,
+                problem: Some("no instances: ignored".into()),
+            }),
+            Ok(Some(r)) => {
+                let region_vertices = match &r.kind {
+                    ResolvedKind::Group { region, .. } => region.vertices.len(),
+                    ResolvedKind::Instances { instances, .. } => {
+                        let mut all: Vec<u32> =
+                            instances.iter().flat_map(|i| i.vertices.iter().copied()).collect();
+                        all.sort_unstable();
+                        all.dedup();
+                        all.len()
+                    }
+                };
+                let order = r.order();
+                let single = ResolvedAnnotation {
+                    symmetries: vec![r],
+                    ..ResolvedAnnotation::identity_only(diagonal, tol)
+                };
+                let transforms: Vec<TransformCheck> = single
+                    .elements()
+                    .iter()
+                    .map(|e| {
+                        let residual = element_residual(mesh, &surface, e);
+                        let map = induced_map(mesh, surface.tree(), &neigh, e, tol * diagonal);
+                        TransformCheck {
+                            label: e.label.clone(),
+                            transform: e.transform,
+                            residual,
+                            vertices: e.domain.len(),
+                            matched_vertices: map.pairs.len(),
+                        }
+                    })
+                    .collect();
+                let max_residual = transforms.iter().map(|t| t.residual).fold(0.0, f64::max);
+                symmetries.push(SymmetryCheck {
+                    name: s.name.clone(),
+                    kind,
+                    order,
+                    region_vertices,
+                    transforms,
+                    max_residual,
+                    ok: max_residual <= tol,
+                    problem: None,
+                });
+            }
+        }
+    }
+    let ok = symmetries.iter().all(|s| s.ok);
+    Ok(AnnotationReport { diagonal, tolerance: tol, symmetries, ok })
+}
+
+/// Mean position of each vertex's neighbours along triangle edges (the vertex itself when it has
+/// none): tells coincident vertices of different parts apart.
+pub(crate) fn one_ring_means(mesh: &TriMesh) -> Vec<Point3> {
+    let n = mesh.num_vertices();
+    let mut sum = vec![[0.0; 3]; n];
+    let mut cnt = vec![0u32; n];
+    for t in &mesh.triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
+            sum[a] = add(sum[a], mesh.positions[b]);
+            sum[b] = add(sum[b], mesh.positions[a]);
+            cnt[a] += 1;
+            cnt[b] += 1;
+        }
+    }
+    (0..n).map(|v| if cnt[v] == 0 { mesh.positions[v] } else { scale(sum[v], 1.0 / cnt[v] as f64) }).collect()
+}
+
+/// An induced vertex map: `pairs[i] = (k, φ(k))`.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct InducedMap {
+    /// `(k, φ(k))` for every domain vertex whose image lies on a vertex within the tolerance.
+    pub pairs: Vec<(u32, u32)>,
+    /// Domain vertices whose image is no vertex (φ undefined there).
+    pub unmatched: usize,
+}
+
+/// φ of one element: vertex `k` ↦ the vertex at `g(x_k)` within `tol` (absolute). Coincident
+/// candidates (parts that touch without being welded) are told apart by their neighbourhoods:
+/// the candidate whose one-ring mean is closest to `g`(one-ring mean of `k`) wins.
+pub(crate) fn induced_map(
+    mesh: &TriMesh,
+    tree: &KdTree,
+    neigh: &[Point3],
+    e: &SymmetryElement,
+    tol: f64,
+) -> InducedMap {
+    let res: Vec<Option<(u32, u32)>> = e
+        .domain
+        .par_iter()
+        .map(|&k| {
+            let q = transform_point(&e.transform, mesh.positions[k as usize]);
+            let cands = tree.within_unsorted(q, tol);
+            match cands.len() {
+                0 => None,
+                1 => Some((k, cands[0].index as u32)),
+                _ => {
+                    let gm = transform_point(&e.transform, neigh[k as usize]);
+                    let best = cands
+                        .iter()
+                        .min_by(|a, b| {
+                            let da = dist(neigh[a.index], gm) + a.distance;
+                            let db = dist(neigh[b.index], gm) + b.distance;
+                            da.total_cmp(&db).then(a.index.cmp(&b.index))
+                        })
+                        .map(|n| n.index as u32)?;
+                    Some((k, best))
+                }
+            }
+        })
+        .collect();
+    let unmatched = res.iter().filter(|r| r.is_none()).count();
+    InducedMap { pairs: res.into_iter().flatten().collect(), unmatched }
+}
+
+/// Computes the induced vertex map φ of `transform` on `domain` (vertices whose image lies within
+/// `tolerance × diagonal` of a vertex).
+pub fn induced_vertex_map(
+    mesh: &TriMesh,
+    transform: &Mat4,
+    domain: &[u32],
+    tolerance: f64,
+) -> Result<InducedMap> {
+    let d = check_mesh(mesh)?;
+    let tree = KdTree::new(&mesh.positions)?;
+    let neigh = one_ring_means(mesh);
+    let e = SymmetryElement {
+        symmetry: 0,
+        name: String::new(),
+        label: String::new(),
+        transform: *transform,
+        domain: domain.iter().copied().filter(|&k| (k as usize) < mesh.num_vertices()).collect(),
+    };
+    Ok(induced_map(mesh, &tree, &neigh, &e, tolerance * d))
+}
+
+/// The residual of one element on a deformed mesh.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ElementResidual {
+    /// Index of the symmetry in the annotation.
+    pub symmetry: usize,
+    /// The symmetry's name.
+    pub name: String,
+    /// "element 3" or "instance 2 -> 0".
+    pub label: String,
+    /// `max_k |g(y_k) − y_{φ(k)}|` over the matched domain, relative to the rest diagonal.
+    pub residual: f64,
+    /// The same on the rest shape (`y = x`): how exact the annotation is.
+    pub rest_residual: f64,
+    /// Domain vertices with an image vertex (where φ is defined).
+    pub matched: usize,
+    /// Domain vertices without one (skipped).
+    pub unmatched: usize,
+}
+
+/// The report of [`symmetry_residual`] / [`SymmetryMaps::residual`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ResidualReport {
+    /// Largest residual over all elements, relative to the rest diagonal.
+    pub max: f64,
+    /// The same on the rest shape.
+    pub rest_max: f64,
+    /// Per element.
+    pub elements: Vec<ElementResidual>,
+}
+
+/// The elements of an annotation with their induced vertex maps on a rest mesh: precompute once,
+/// then measure any number of deformed versions of the mesh with [`SymmetryMaps::residual`].
+#[derive(Debug, Clone)]
+pub struct SymmetryMaps {
+    /// Diagonal of the rest mesh.
+    pub diagonal: f64,
+    /// The elements (see [`ResolvedAnnotation::elements`]).
+    pub elements: Vec<SymmetryElement>,
+    /// φ of each element.
+    pub maps: Vec<InducedMap>,
+    rest: Vec<Point3>,
+}
+
+impl SymmetryMaps {
+    /// Resolves `annotation` on `mesh` and computes the induced vertex maps (image within the
+    /// annotation's tolerance of a vertex).
+    pub fn new(mesh: &TriMesh, annotation: &SymmetryAnnotation) -> Result<SymmetryMaps> {
+        let resolved = crate::annotation::resolve_annotation(mesh, annotation)?;
+        SymmetryMaps::from_resolved(mesh, &resolved)
+    }
+
+    /// [`SymmetryMaps::new`] from an already resolved annotation.
+    pub fn from_resolved(mesh: &TriMesh, resolved: &ResolvedAnnotation) -> Result<SymmetryMaps> {
+        let diagonal = check_mesh(mesh)?;
+        let tree = KdTree::new(&mesh.positions)?;
+        let neigh = one_ring_means(mesh);
+        let elements = resolved.elements();
+        let maps = elements
+            .iter()
+            .map(|e| induced_map(mesh, &tree, &neigh, e, resolved.tolerance * diagonal))
+            .collect();
+        Ok(SymmetryMaps { diagonal, elements, maps, rest: mesh.positions.clone() })
+    }
+
+    /// Eq. 3.2 on `deformed` (same vertex order as the rest mesh): for every element `g` with map
+    /// φ, `max_k |g(y_k) − y_{φ(k)}|` relative to the rest diagonal. Fails when the vertex count
+    /// differs.
+    pub fn residual(&self, deformed: &[Point3]) -> Result<ResidualReport> {
+        if deformed.len() != self.rest.len() {
+            return Err(crate::error::DeformError::InvalidOption {
+                name: "deformed",
+                message: format!("has {} vertices, the rest mesh {}", deformed.len(), self.rest.len()),
+            });
+        }
+        let measure = |y: &[Point3], e: &SymmetryElement, m: &InducedMap| -> f64 {
+            m.pairs
+                .par_iter()
+                .map(|&(k, j)| {
+                    let d = dist(transform_point(&e.transform, y[k as usize]), y[j as usize]);
+                    if d.is_nan() { f64::INFINITY } else { d }
+                })
+                .reduce(|| 0.0, f64::max)
+        };
+        let elements: Vec<ElementResidual> = self
+            .elements
+            .iter()
+            .zip(&self.maps)
+            .map(|(e, m)| ElementResidual {
+                symmetry: e.symmetry,
+                name: e.name.clone(),
+                label: e.label.clone(),
+                residual: measure(deformed, e, m) / self.diagonal,
+                rest_residual: measure(&self.rest, e, m) / self.diagonal,
+                matched: m.pairs.len(),
+                unmatched: m.unmatched,
+            })
+            .collect();
+        Ok(ResidualReport {
+            max: elements.iter().map(|e| e.residual).fold(0.0, f64::max),
+            rest_max: elements.iter().map(|e| e.rest_residual).fold(0.0, f64::max),
+            elements,
+        })
+    }
+}
+
+/// Eq. 3.2 on a deformed mesh: for every element `g` of `annotation` (resolved on the rest `mesh`)
+/// with induced vertex map φ, `max_k |g(y_k) − y_{φ(k)}|` relative to the rest diagonal, where
+/// `y = deformed`. Use [`SymmetryMaps`] to measure many deformations of one mesh.
+pub fn symmetry_residual(
+    mesh: &TriMesh,
+    deformed: &[Point3],
+    annotation: &SymmetryAnnotation,
+) -> Result<ResidualReport> {
+    SymmetryMaps::new(mesh, annotation)?.residual(deformed)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn closest_point_regions() {
+        let (a, b, c) = ([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
+        assert!(dist(closest_point_on_triangle([0.2, 0.2, 1.0], a, b, c), [0.2, 0.2, 0.0]) < 1e-15);
+        assert_eq!(closest_point_on_triangle([-1.0, -1.0, 0.0], a, b, c), a);
+        assert_eq!(closest_point_on_triangle([2.0, -0.5, 0.0], a, b, c), b);
+        let p = closest_point_on_triangle([1.0, 1.0, 0.0], a, b, c);
+        assert!(dist(p, [0.5, 0.5, 0.0]) < 1e-15);
+    }
+}
