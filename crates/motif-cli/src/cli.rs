@@ -50,6 +50,11 @@ pub enum Command {
     Features(FeaturesCommand),
     /// Rigidly align one shape to another with ICP.
     Align(AlignArgs),
+    /// Drag handles; every annotated symmetry stays exact (thesis chapter 3).
+    Deform(DeformArgs),
+    /// Benchmarks that print tables comparable with the thesis's.
+    #[command(subcommand)]
+    Bench(BenchCommand),
     /// Symmetries: detect them automatically, or check an annotation against a mesh.
     #[command(subcommand)]
     Symmetry(SymmetryCommand),
@@ -360,6 +365,72 @@ pub enum SymmetryCommand {
     /// Find global reflection planes and rotational symmetries and write a motif_symmetry_v1
     /// annotation (validated by closest-point residual).
     Detect(SymmetryDetectArgs),
+    /// Validate an annotation against a mesh: group orders and, for every transform, the largest
+    /// distance of a transformed region vertex to the surface (relative to the diagonal).
+    Check(SymmetryCheckArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct SymmetryCheckArgs {
+    /// The mesh.
+    pub mesh: PathBuf,
+    /// The annotation (motif_symmetry_v1).
+    pub annotation: PathBuf,
+    #[command(flatten)]
+    pub json: JsonArg,
+}
+
+#[derive(Debug, Args)]
+pub struct DeformArgs {
+    /// Input mesh.
+    pub mesh: PathBuf,
+    /// Symmetry annotation (motif_symmetry_v1), e.g. from `motif symmetry detect`.
+    #[arg(long)]
+    pub symmetry: Option<PathBuf>,
+    /// Handles (motif_handles_v1); with `frames`, they are solved in sequence and the last is written.
+    #[arg(long)]
+    pub handles: PathBuf,
+    /// Output mesh.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Sampling radius r (thesis 3.4) as a fraction of the bounding-box diagonal.
+    #[arg(long, conflicts_with = "samples")]
+    pub radius: Option<f64>,
+    /// Target number of samples instead of a radius (default 400).
+    #[arg(long)]
+    pub samples: Option<usize>,
+    /// Handle weight α of eq. 3.3.
+    #[arg(long)]
+    pub alpha: Option<f64>,
+    /// Co-rotated Laplace iterations per frame (default 5).
+    #[arg(long)]
+    pub iterations: Option<usize>,
+    /// Same pipeline with only the identity: shows what the symmetric basis buys.
+    #[arg(long)]
+    pub no_symmetry: bool,
+    #[command(flatten)]
+    pub json: JsonArg,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum BenchCommand {
+    /// Thesis Table 3.1: sizes, prefactor, solve (5 iterations), lift and frames per second.
+    Deform(BenchDeformArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct BenchDeformArgs {
+    /// Frames timed per model (medians are reported).
+    #[arg(long, default_value_t = 60)]
+    pub frames: usize,
+    /// Folder of real meshes (default: ../shared/data or $MOTIF_DATA when present).
+    #[arg(long)]
+    pub data: Option<PathBuf>,
+    /// Only the generated examples.
+    #[arg(long)]
+    pub generated_only: bool,
+    #[command(flatten)]
+    pub json: JsonArg,
 }
 
 #[derive(Debug, Args)]

@@ -32,6 +32,9 @@ pub fn exit_code(err: &anyhow::Error) -> u8 {
         if let Some(e) = cause.downcast_ref::<motif_core::Error>() {
             return if e.is_bad_input() { 2 } else { 1 };
         }
+        if let Some(e) = cause.downcast_ref::<motif_deform::DeformError>() {
+            return if e.is_bad_input() { 2 } else { 1 };
+        }
         if let Some(e) = cause.downcast_ref::<motif_deform::symmetry_detect::SymmetryDetectError>() {
             return match e {
                 motif_deform::symmetry_detect::SymmetryDetectError::Core(c) => {

@@ -245,7 +245,7 @@ fn align_recovers_a_known_motion_and_demo_runs() {
     assert!(o.status.success(), "{}", stderr(&o));
     let rep: serde_json::Value =
         serde_json::from_slice(&std::fs::read(d.path().join("demo.json")).unwrap()).unwrap();
-    assert_eq!(rep["steps"].as_array().unwrap().len(), 6);
+    assert_eq!(rep["steps"].as_array().unwrap().len(), 8);
     assert!(d.path().join("demo/gear_curvature.ply").exists());
 }
 
@@ -293,4 +293,48 @@ fn symmetry_detect_writes_an_annotation_and_mrf_solve_reports_energy() {
     let o = motif(&["mrf", "solve", "bad.json"], d.path());
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("bad.json"), "{}", stderr(&o));
+}
+
+#[test]
+fn deform_keeps_symmetry_exact_and_no_symmetry_does_not() {
+    let d = tmp();
+    assert!(motif(&["example", "fan", "fan.obj", "--structure", "fan.json"], d.path()).status.success());
+    let s: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.path().join("fan.json")).unwrap()).unwrap();
+    std::fs::write(d.path().join("fan.sym.json"), s["symmetry"].to_string()).unwrap();
+    let o = motif(&["symmetry", "check", "fan.obj", "fan.sym.json"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let lift = |k: f64| format!("[[1,0,0,0],[0,1,0,0],[0,0,1,{k}],[0,0,0,1]]");
+    let id = "[[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]";
+    let frames: Vec<String> = (1..=5).map(|k| format!("[{id},{}]", lift(0.02 * k as f64))).collect();
+    let handles = format!(
+        r#"{{"format":"motif_handles_v1","handles":[{{"region":{{"sphere":{{"center":[0,0,0],"radius":0.06}}}}}},{{"region":{{"sphere":{{"center":[0.3,0,0],"radius":0.04}}}}}}],"frames":[{}]}}"#,
+        frames.join(",")
+    );
+    std::fs::write(d.path().join("h.json"), handles).unwrap();
+    let args =
+        ["deform", "fan.obj", "--symmetry", "fan.sym.json", "--handles", "h.json", "-o", "out.obj", "--json"];
+    let r = json_of(&motif(&args, d.path()));
+    assert_eq!(r["frames"], 5);
+    let res = r["symmetry_residual"]["max"].as_f64().unwrap();
+    assert!(res <= 1e-9, "symmetric residual {res}");
+    let mut args_ns = args.to_vec();
+    args_ns.push("--no-symmetry");
+    args_ns[7] = "out_ns.obj";
+    let r = json_of(&motif(&args_ns, d.path()));
+    let res = r["symmetry_residual"]["max"].as_f64().unwrap();
+    assert!(res > 1e-3, "without the basis the edit breaks the symmetry: {res}");
+    // The mesh moved, and its triangles were kept.
+    let a = json_of(&motif(&["info", "fan.obj", "--json"], d.path()));
+    let b = json_of(&motif(&["info", "out.obj", "--json"], d.path()));
+    assert_eq!(a["triangles"], b["triangles"]);
+    assert_ne!(a["bbox_max"], b["bbox_max"]);
+    // No handles: a clear error and no output.
+    std::fs::write(d.path().join("none.json"), r#"{"format":"motif_handles_v1","handles":[]}"#).unwrap();
+    let o = motif(
+        &["deform", "fan.obj", "--symmetry", "fan.sym.json", "--handles", "none.json", "-o", "x.obj"],
+        d.path(),
+    );
+    assert_eq!(o.status.code(), Some(2));
+    assert!(!d.path().join("x.obj").exists());
 }

@@ -1,8 +1,10 @@
 //! One module per subcommand; each exposes `run(args, &GlobalArgs)`.
 
 mod align;
+mod bench;
 mod convert;
 mod curvature;
+mod deform;
 mod demo;
 mod example;
 mod features;
@@ -18,7 +20,8 @@ use anyhow::Context;
 use motif_core::io::{self, Model, PlyEncoding, StlEncoding, WriteOptions};
 
 use crate::cli::{
-    Cli, Command, EncodingArgs, FeaturesCommand, MrfCommand, PlyEncodingArg, StlEncodingArg, SymmetryCommand,
+    BenchCommand, Cli, Command, EncodingArgs, FeaturesCommand, MrfCommand, PlyEncodingArg, StlEncodingArg,
+    SymmetryCommand,
 };
 
 /// Dispatches a parsed command line.
@@ -33,6 +36,9 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Features(FeaturesCommand::Shot(a)) => features::run_shot(a, g),
         Command::Align(a) => align::run(a, g),
         Command::Symmetry(SymmetryCommand::Detect(a)) => symmetry::detect(a, g),
+        Command::Symmetry(SymmetryCommand::Check(a)) => symmetry::check(a, g),
+        Command::Deform(a) => deform::run(a, g),
+        Command::Bench(BenchCommand::Deform(a)) => bench::deform(a, g),
         Command::Mrf(MrfCommand::Solve(a)) => mrf::solve(a, g),
         Command::Mrf(MrfCommand::Generate(a)) => mrf::generate(a, g),
         Command::Example(a) => example::run(a, g),

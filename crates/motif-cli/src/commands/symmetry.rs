@@ -8,7 +8,7 @@ use motif_deform::symmetry_detect::{
 };
 use serde::Serialize;
 
-use crate::cli::{GlobalArgs, SymmetryDetectArgs};
+use crate::cli::{GlobalArgs, SymmetryCheckArgs, SymmetryDetectArgs};
 use crate::output::{bad_input, check_output, maybe_json, ms_since, write_json};
 use crate::progress::Bar;
 
@@ -86,4 +86,41 @@ pub fn detect(a: SymmetryDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         report: &det.report,
     };
     maybe_json(&a.json.json, &report)
+}
+
+pub fn check(a: SymmetryCheckArgs, _g: &GlobalArgs) -> anyhow::Result<()> {
+    let mesh = motif_core::io::read_mesh(&a.mesh)?;
+    let annotation = motif_deform::annotation::read_annotation(&a.annotation)?;
+    let report = motif_deform::residual::check_annotation(&mesh, &annotation)?;
+    if a.json.json.is_some() {
+        maybe_json(&a.json.json, &report)?;
+    } else {
+        println!(
+            "{} against {} (tolerance {:.0e} of the diagonal)",
+            a.annotation.display(),
+            a.mesh.display(),
+            report.tolerance
+        );
+        for s in &report.symmetries {
+            println!(
+                "  {:<4} {:<10} order {:>4}  max residual {:.2e}  {}",
+                if s.ok { "ok" } else { "FAIL" },
+                s.kind,
+                s.order,
+                s.max_residual,
+                s.name
+            );
+            if let Some(p) = &s.problem {
+                println!("       {p}");
+            }
+        }
+    }
+    if !report.ok {
+        anyhow::bail!(
+            "{}: the annotation does not fit {} within its tolerance",
+            a.annotation.display(),
+            a.mesh.display()
+        );
+    }
+    Ok(())
 }

@@ -1,0 +1,256 @@
+//! `motif bench deform`: a table shaped like thesis Table 3.1 (vertices, triangles, groups,
+//! samples, DoF, prefactor, solve for 5 iterations, lift, frames per second), on generated examples
+//! and real meshes, with medians over many frames.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use motif_core::TriMesh;
+use motif_core::geometry::{IDENTITY4, Mat4, mat4_mul, rotation_about_axis};
+use motif_core::procedural::{self, Region, SymmetryAnnotation, translation};
+use motif_deform::residual::SymmetryMaps;
+use motif_deform::session::DeformOptions;
+use motif_deform::symmetry_detect::{SymmetryDetectOptions, detect_symmetries};
+use motif_deform::{DeformSession, Handle};
+use serde::Serialize;
+
+use super::deform::{Spread, spread};
+use crate::cli::{BenchDeformArgs, GlobalArgs};
+use crate::output::{bad_input, maybe_json, ms_since};
+
+#[derive(Debug, Serialize)]
+struct Row {
+    model: String,
+    annotation: &'static str,
+    vertices: usize,
+    triangles: usize,
+    symmetries: usize,
+    group_elements: usize,
+    samples: usize,
+    dof: usize,
+    prefactor_ms: f64,
+    solve_ms: Spread,
+    lift_ms: Spread,
+    frame_ms: Spread,
+    fps: f64,
+    residual: Option<f64>,
+}
+
+#[derive(Debug, Serialize)]
+struct BenchReport {
+    frames: usize,
+    iterations: usize,
+    handles: usize,
+    threads: usize,
+    rows: Vec<Row>,
+}
+
+fn data_dir(a: &BenchDeformArgs) -> Option<PathBuf> {
+    if let Some(d) = &a.data {
+        return Some(d.clone());
+    }
+    if let Ok(d) = std::env::var("MOTIF_DATA") {
+        return Some(PathBuf::from(d));
+    }
+    let guess = PathBuf::from("../shared/data");
+    guess.join("MANIFEST.json").is_file().then_some(guess)
+}
+
+/// Four handles far apart (farthest-point picks among the vertices, starting at the extreme of the
+/// longest bounding-box axis), spheres of up to 6% of the diagonal kept disjoint: the first two
+/// fixed, the last two dragged (the set-up of the libigl ARAP timings we compare with).
+fn four_handles(mesh: &TriMesh) -> Vec<Handle> {
+    use motif_core::geometry::dist;
+    let bb = mesh.aabb().expect("non-empty mesh");
+    let e = bb.extent();
+    let ax = (0..3).max_by(|&i, &j| e[i].total_cmp(&e[j])).unwrap_or(0);
+    let first = mesh.positions.iter().copied().min_by(|p, q| p[ax].total_cmp(&q[ax])).unwrap_or(bb.min);
+    let mut centres = vec![first];
+    while centres.len() < 4 {
+        let next = mesh
+            .positions
+            .iter()
+            .copied()
+            .max_by(|p, q| {
+                let dp = centres.iter().map(|c| dist(*c, *p)).fold(f64::INFINITY, f64::min);
+                let dq = centres.iter().map(|c| dist(*c, *q)).fold(f64::INFINITY, f64::min);
+                dp.total_cmp(&dq)
+            })
+            .unwrap_or(bb.max);
+        centres.push(next);
+    }
+    let mut min_gap = f64::INFINITY;
+    for i in 0..4 {
+        for j in i + 1..4 {
+            min_gap = min_gap.min(dist(centres[i], centres[j]));
+        }
+    }
+    let r = (0.06 * bb.diagonal()).min(0.45 * min_gap);
+    centres.into_iter().map(|c| Handle::fixed(Region::Sphere { center: c, radius: r })).collect()
+}
+
+/// Frame `f` of `n`: the dragged handles rotate up to 30° about their own centre and rise.
+fn frame_transforms(handles: &[Handle], diag: f64, f: usize, n: usize) -> Vec<Mat4> {
+    let s = (f + 1) as f64 / n as f64;
+    handles
+        .iter()
+        .enumerate()
+        .map(|(i, h)| {
+            if i < 2 {
+                return IDENTITY4;
+            }
+            let c = match &h.region {
+                Region::Sphere { center, .. } => *center,
+                _ => [0.0; 3],
+            };
+            let sign = if i == 2 { 1.0 } else { -1.0 };
+            let rot = motif_core::geometry::mat4_from_rt(
+                rotation_about_axis([0.0, 0.0, 1.0], sign * s * 0.52),
+                [0.0; 3],
+            );
+            let about = mat4_mul(&translation(c), &mat4_mul(&rot, &translation([-c[0], -c[1], -c[2]])));
+            mat4_mul(&translation([0.0, 0.0, 0.1 * s * diag]), &about)
+        })
+        .collect()
+}
+
+fn bench_one(
+    name: &str,
+    label: &'static str,
+    mesh: &TriMesh,
+    annotation: &SymmetryAnnotation,
+    frames: usize,
+    options: &DeformOptions,
+) -> anyhow::Result<Row> {
+    let mut session = DeformSession::new(mesh, annotation, options)?;
+    let handles = four_handles(mesh);
+    session.set_handles(&handles)?;
+    let prefactor_ms = session.stats().timings.prefactor_ms;
+    let diag = mesh.diagonal();
+    let (mut solve, mut lift, mut frame) = (Vec::new(), Vec::new(), Vec::new());
+    for f in 0..frames {
+        let tr = frame_transforms(&handles, diag, f, frames);
+        let t = Instant::now();
+        session.solve(&tr)?;
+        frame.push(ms_since(t));
+        solve.push(session.stats().timings.solve_ms);
+        lift.push(session.stats().timings.lift_ms);
+    }
+    let residual = if annotation.symmetries.is_empty() {
+        None
+    } else {
+        Some(SymmetryMaps::new(mesh, annotation)?.residual(session.positions())?.max)
+    };
+    let st = session.stats();
+    let frame_ms = spread(&frame);
+    Ok(Row {
+        model: name.to_string(),
+        annotation: label,
+        vertices: mesh.num_vertices(),
+        triangles: mesh.num_triangles(),
+        symmetries: annotation.symmetries.len(),
+        group_elements: session.annotation().elements().len(),
+        samples: st.samples,
+        dof: st.dof,
+        prefactor_ms,
+        solve_ms: spread(&solve),
+        lift_ms: spread(&lift),
+        fps: if frame_ms.median > 0.0 { 1000.0 / frame_ms.median } else { f64::INFINITY },
+        frame_ms,
+        residual,
+    })
+}
+
+pub fn deform(a: BenchDeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    if a.frames == 0 {
+        return Err(bad_input("--frames 0: time at least one frame"));
+    }
+    let mut options = DeformOptions::default();
+    options.sampling.seed = g.seed;
+    let mut cases: Vec<(String, &'static str, TriMesh, SymmetryAnnotation)> = Vec::new();
+    for name in ["fan", "gear", "chair", "windmill", "windmill_100k"] {
+        let ex = procedural::generate(name, g.seed)?;
+        cases.push((name.to_string(), "known", ex.mesh, ex.structure.symmetry));
+    }
+    if !a.generated_only {
+        match data_dir(&a) {
+            Some(dir) => {
+                for rel in [
+                    "man-made/cgal_turbine.off",
+                    "man-made/cgal_pinion.off",
+                    "natural/cgal_armadillo.off",
+                    "natural/cgal_armadillo_subdiv.ply",
+                ] {
+                    let path: &Path = &dir.join(rel);
+                    let mesh = motif_core::io::read_mesh(path)?;
+                    let det = detect_symmetries(
+                        &mesh,
+                        &SymmetryDetectOptions { seed: g.seed, ..Default::default() },
+                    )?;
+                    cases.push((rel.to_string(), "detected", mesh, det.annotation));
+                }
+            }
+            None => eprintln!("note: no ../shared/data (set MOTIF_DATA or --data); generated examples only"),
+        }
+    }
+    let bar = crate::progress::Bar::new(g.quiet);
+    motif_core::progress::Progress::start(&bar, "bench deform", cases.len() as u64);
+    let mut rows = Vec::new();
+    for (name, label, mesh, ann) in &cases {
+        rows.push(bench_one(name, label, mesh, ann, a.frames, &options)?);
+        motif_core::progress::Progress::inc(&bar, 1);
+    }
+    motif_core::progress::Progress::finish(&bar);
+    let report = BenchReport {
+        frames: a.frames,
+        iterations: options.editing.iterations,
+        handles: 4,
+        threads: rayon::current_num_threads(),
+        rows,
+    };
+    if !crate::output::json_on_stdout(&a.json.json) {
+        println!(
+            "Symmetry-preserving deformation, {} frames per model, {} co-rotated iterations per frame, 4 handles, {} threads",
+            report.frames, report.iterations, report.threads
+        );
+        println!(
+            "(thesis Table 3.1, one 2014 Xeon thread: 13-60 fps, prefactor 4 ms-4.2 s, solve < 1 ms per iteration for the fan)\n"
+        );
+        println!(
+            "{:<36} {:>7} {:>7} {:>5} {:>7} {:>5} {:>10} {:>10} {:>9} {:>9} {:>7} {:>9}",
+            "model",
+            "verts",
+            "tris",
+            "group",
+            "samples",
+            "DoF",
+            "prefac ms",
+            "solve ms",
+            "lift ms",
+            "frame ms",
+            "fps",
+            "residual"
+        );
+        for r in &report.rows {
+            println!(
+                "{:<36} {:>7} {:>7} {:>5} {:>7} {:>5} {:>10.1} {:>10.3} {:>9.3} {:>9.3} {:>7.0} {:>9}",
+                format!("{} ({})", r.model, r.annotation),
+                r.vertices,
+                r.triangles,
+                r.group_elements,
+                r.samples,
+                r.dof,
+                r.prefactor_ms,
+                r.solve_ms.median,
+                r.lift_ms.median,
+                r.frame_ms.median,
+                r.fps,
+                r.residual.map_or("-".to_string(), |x| format!("{x:.1e}"))
+            );
+        }
+        println!(
+            "\nmedians over frames; elems = symmetry group elements besides the identity; residual = max |g(x+u) - (x+u)∘φ| over group elements, relative to the diagonal"
+        );
+    }
+    maybe_json(&a.json.json, &report)
+}

@@ -1,0 +1,187 @@
+//! `motif deform`: symmetry-preserving handle editing (thesis chapter 3), one-shot from files.
+
+use std::time::Instant;
+
+use motif_core::io::{Model, WriteOptions};
+use motif_core::procedural::SymmetryAnnotation;
+use motif_deform::annotation::read_annotation;
+use motif_deform::residual::{ResidualReport, SymmetryMaps};
+use motif_deform::session::{AnnotationValidation, DeformOptions, DeformStats, HandleFit, SymmetryMode};
+use motif_deform::symmetric_sampling::SampleSpacing;
+use motif_deform::{DeformSession, HandlesFile};
+use serde::Serialize;
+
+use crate::cli::{DeformArgs, GlobalArgs};
+use crate::output::{bad_input, check_output, maybe_json, ms_since};
+
+/// Median and 95th percentile of a list of milliseconds.
+#[derive(Debug, Clone, Copy, Serialize, Default)]
+pub struct Spread {
+    pub median: f64,
+    pub p95: f64,
+}
+
+pub fn spread(v: &[f64]) -> Spread {
+    if v.is_empty() {
+        return Spread::default();
+    }
+    let mut s = v.to_vec();
+    s.sort_by(|a, b| a.total_cmp(b));
+    let at = |q: f64| s[((s.len() - 1) as f64 * q).round() as usize];
+    Spread { median: at(0.5), p95: at(0.95) }
+}
+
+#[derive(Debug, Serialize)]
+struct DeformReport {
+    mesh: String,
+    symmetry: Option<String>,
+    handles: String,
+    output: String,
+    options: DeformOptions,
+    vertices: usize,
+    triangles: usize,
+    symmetries: usize,
+    samples: usize,
+    dof: usize,
+    frames: usize,
+    prefactor_ms: f64,
+    solve_ms: Spread,
+    lift_ms: Spread,
+    frame_ms: Spread,
+    symmetry_residual: Option<ResidualReport>,
+    handle_fit: Vec<HandleFit>,
+    stats: DeformStats,
+    warnings: Vec<String>,
+    total_ms: f64,
+}
+
+pub fn run(a: DeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    let t0 = Instant::now();
+    let mesh = motif_core::io::read_mesh(&a.mesh)?;
+    let annotation = match &a.symmetry {
+        Some(p) => read_annotation(p)?,
+        None if a.no_symmetry => SymmetryAnnotation {
+            format: motif_core::procedural::SYMMETRY_FORMAT.to_string(),
+            tolerance: motif_core::procedural::DEFAULT_SYMMETRY_TOLERANCE,
+            symmetries: Vec::new(),
+        },
+        None => return Err(bad_input("give --symmetry ANNOT (or --no-symmetry to deform without one)")),
+    };
+    let handles = HandlesFile::read(&a.handles)?;
+    check_output(&a.output, &[&a.mesh, &a.handles], g.force)?;
+    if let Some(p) = &a.symmetry {
+        check_output(&a.output, &[p], g.force)?;
+    }
+    let mut options = DeformOptions {
+        symmetry: if a.no_symmetry { SymmetryMode::Ignore } else { SymmetryMode::Preserve },
+        validation: if g.force { AnnotationValidation::Force } else { AnnotationValidation::Strict },
+        ..Default::default()
+    };
+    options.sampling.seed = g.seed;
+    match (a.radius, a.samples) {
+        (Some(r), _) if !(r > 0.0 && r < 1.0) => {
+            return Err(bad_input(format!("--radius {r}: a fraction of the diagonal in (0, 1)")));
+        }
+        (Some(r), _) => options.sampling.spacing = SampleSpacing::Radius(r),
+        (None, Some(0)) => return Err(bad_input("--samples 0: ask for at least one sample")),
+        (None, Some(n)) => options.sampling.spacing = SampleSpacing::Count(n),
+        (None, None) => {}
+    }
+    if let Some(alpha) = a.alpha {
+        if !(alpha > 0.0 && alpha.is_finite()) {
+            return Err(bad_input(format!("--alpha {alpha}: must be positive")));
+        }
+        options.editing.alpha = alpha;
+    }
+    if let Some(it) = a.iterations {
+        options.editing.iterations = it;
+    }
+
+    let bar = crate::progress::Bar::new(g.quiet);
+    let mut session = bar.spin("precompute", || DeformSession::new(&mesh, &annotation, &options))?;
+    session.set_handles(&handles.handles)?;
+    let prefactor_ms = session.stats().timings.prefactor_ms;
+    let frames: Vec<Vec<[[f64; 4]; 4]>> =
+        if handles.frames.is_empty() { vec![handles.transforms()] } else { handles.frames.clone() };
+    let (mut solve, mut lift, mut frame) = (Vec::new(), Vec::new(), Vec::new());
+    for (i, f) in frames.iter().enumerate() {
+        if f.len() != handles.handles.len() {
+            return Err(bad_input(format!(
+                "{}: frame {i} has {} transforms for {} handles",
+                a.handles.display(),
+                f.len(),
+                handles.handles.len()
+            )));
+        }
+        let t = Instant::now();
+        session.solve(f)?;
+        frame.push(ms_since(t));
+        solve.push(session.stats().timings.solve_ms);
+        lift.push(session.stats().timings.lift_ms);
+    }
+    let positions = session.positions().to_vec();
+    if positions.iter().any(|p| !motif_core::geometry::is_finite(*p)) {
+        anyhow::bail!("the deformation produced non-finite positions; nothing was written");
+    }
+    // The residual is measured against the annotation even with --no-symmetry: that contrast is
+    // what the symmetric basis buys.
+    let residual = if annotation.symmetries.is_empty() {
+        None
+    } else {
+        Some(SymmetryMaps::new(&mesh, &annotation)?.residual(&positions)?)
+    };
+    let out_mesh = motif_core::TriMesh { positions, triangles: mesh.triangles.clone() };
+    motif_core::io::write(&a.output, &Model::from_mesh(&out_mesh), &WriteOptions::default())?;
+
+    let stats = session.stats().clone();
+    let report = DeformReport {
+        mesh: a.mesh.display().to_string(),
+        symmetry: a.symmetry.as_ref().map(|p| p.display().to_string()),
+        handles: a.handles.display().to_string(),
+        output: a.output.display().to_string(),
+        options: options.clone(),
+        vertices: mesh.num_vertices(),
+        triangles: mesh.num_triangles(),
+        symmetries: annotation.symmetries.len(),
+        samples: stats.samples,
+        dof: stats.dof,
+        frames: frames.len(),
+        prefactor_ms,
+        solve_ms: spread(&solve),
+        lift_ms: spread(&lift),
+        frame_ms: spread(&frame),
+        symmetry_residual: residual,
+        handle_fit: session.handle_fit().to_vec(),
+        warnings: session.warnings().to_vec(),
+        stats,
+        total_ms: ms_since(t0),
+    };
+    if !crate::output::json_on_stdout(&a.json.json) && !g.quiet {
+        println!(
+            "{} vertices, {} symmetries, {} samples, {} DoF{}",
+            report.vertices,
+            report.symmetries,
+            report.samples,
+            report.dof,
+            if a.no_symmetry { " (symmetry ignored)" } else { "" }
+        );
+        println!(
+            "prefactor {:.1} ms; per frame ({} frames): solve {:.2} ms, lift {:.2} ms, total {:.2} ms median",
+            report.prefactor_ms,
+            report.frames,
+            report.solve_ms.median,
+            report.lift_ms.median,
+            report.frame_ms.median
+        );
+        if let Some(r) = &report.symmetry_residual {
+            println!("symmetry residual {:.2e} of the diagonal (rest shape {:.2e})", r.max, r.rest_max);
+        }
+        let worst = report.handle_fit.iter().map(|f| f.max_error).fold(0.0, f64::max);
+        println!("handle fit: largest sample error {:.2e} of the diagonal", worst);
+        for w in &report.warnings {
+            println!("warning: {w}");
+        }
+        eprintln!("wrote {}", report.output);
+    }
+    maybe_json(&a.json.json, &report)
+}
