@@ -17,6 +17,7 @@ pub mod alpha_expansion;
 pub mod error;
 pub mod maxflow;
 pub mod mrf_grid;
+pub mod retarget;
 
 pub use alpha_expansion::{
     AlphaExpansion, AlphaExpansionOptions, AlphaExpansionResult, CycleStrategy, LabelOrder, MrfEnergy,

@@ -1,0 +1,578 @@
+//! Structure-aware retargeting by stitching shifted copies of a model with a multi-label graph
+//! cut (thesis 4.2.2, 4.4), and the dense-MRF baseline (thesis 4.5).
+//!
+//! Given the principal offsets `v₁…v_K` of a model's repetition (K ≤ 3, model units; found by the
+//! offset detection of 4.2.1 or known) and a number of steps per offset, the model is resized
+//! along its own lattice:
+//! 1. **Normalise** so the largest dimension spans [−1, 1], and map to the **canonical space**
+//!    where the offsets are the coordinate axes (Fig. 4.7; [`canonical`](self) docs). Missing
+//!    offsets are completed by dummy directions of length 0.2.
+//! 2. **Voxelise** with cells equal to the offsets, origin at the canonical bounding box's
+//!    minimum corner. The input grid has `U_in × V_in × W_in` voxels; the output grid (the
+//!    retargeting space Ω) has `(U_in + U) × (V_in + V) × (W_in + W)`.
+//! 3. **Describe** every input voxel by the set of SHOT descriptors (world frame, radius 0.2) of
+//!    the features on its triangles.
+//! 4. **Label** every output voxel with a step vector `k` (it copies input voxel `x − k`) by
+//!    minimising eq. 4.3 with alpha-expansion: unary validity, pairwise Hausdorff distances of
+//!    eq. 4.4 over the 26-neighbourhood (see `energy.rs` for the exact reading of the thesis).
+//! 5. **Stitch** the copies' triangles and weld seams; the result is in model units.
+//!
+//! [`RetargetSession`] precomputes steps 1–3 once and solves for any number of step vectors
+//! (interactive resizing); [`retarget`] and [`retarget_dense`] are the one-shot forms.
+//!
+//! ```no_run
+//! use motif_core::procedural::generate;
+//! use motif_core::progress::NoProgress;
+//! use motif_retarget::retarget::{RetargetOptions, retarget};
+//!
+//! let shelf = generate("shelf", 0)?;
+//! // Known cell pitch as principal offsets; one more column and one more row.
+//! let out = retarget(&shelf.mesh, &shelf.structure.cell_pitch, [1, 1, 0], &RetargetOptions::default(), &NoProgress)?;
+//! println!("{} nodes, {} labels, graph cut {:.1} ms", out.report.nodes, out.report.labels, out.report.graph_cut_ms);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+mod canonical;
+mod dense;
+mod energy;
+mod error;
+mod stitch;
+mod voxels;
+
+use std::time::Instant;
+
+use motif_core::geometry::{Mat4, Point3};
+use motif_core::mesh::TriMesh;
+use motif_core::progress::Progress;
+use serde::{Deserialize, Serialize};
+
+use crate::alpha_expansion::{AlphaExpansionOptions, Termination};
+
+pub use canonical::{Mat3, Normalization};
+pub use error::{RetargetError, RetargetResult};
+
+use canonical::Lattice;
+use energy::DistanceCache;
+use voxels::{DescriptorParams, VoxelDescriptors, VoxelGrid};
+
+/// Which transformation space the copies are taken from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RetargetMethod {
+    /// The thesis's method: voxels and labels from the principal offsets (4.2.2).
+    #[default]
+    Offsets,
+    /// The baseline of 4.5: regular axis-aligned offsets of [`RetargetOptions::dense_spacing`].
+    Dense,
+}
+
+/// How the ends of the model are treated when shrinking.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BoundaryMode {
+    /// Output voxels on the low (high) face of Ω along a resized direction copy the input's low
+    /// (high) face: what the validity term already implies when growing, added when shrinking so
+    /// that the ends of the model are kept (see `energy.rs`). Shrinking then needs at least two
+    /// output voxels along the direction.
+    #[default]
+    Preserve,
+    /// Only the validity term of 4.2.2; a shrink may crop an end of the model.
+    Free,
+}
+
+/// Options of [`retarget`] and [`RetargetSession`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct RetargetOptions {
+    /// Offsets (thesis 4.2.2) or the dense baseline (4.5). Default [`RetargetMethod::Offsets`].
+    pub method: RetargetMethod,
+    /// Length of the dummy directions that complete fewer than three principal offsets to a frame
+    /// (thesis 4.4: "up to two orthogonal dummy directions with length 0.2"); normalised units,
+    /// default 0.2. Only discretises the model; no steps are taken along dummies.
+    pub dummy_length: f64,
+    /// Regular offset of the dense baseline (thesis 4.5: "regular offset (set to 0.1) is used");
+    /// normalised units, default 0.1.
+    pub dense_spacing: f64,
+    /// Poisson-disc spacing of the dense cloud that supports the SHOT descriptors (thesis 4.3:
+    /// "Poisson sampling with 0.02 as the sampling space"); normalised units, default 0.02.
+    pub sample_spacing: f64,
+    /// Poisson-disc spacing of the features, resampled from the dense cloud, whose descriptors
+    /// form the voxel sets G(x) of eq. 4.4 (thesis 4.3: "re-sampled using 0.06"); normalised
+    /// units, default 0.06. Set it to `sample_spacing` to describe every dense sample.
+    pub feature_spacing: f64,
+    /// SHOT support radius R (thesis 4.3: "set to 0.2"); normalised units, default 0.2. The frame
+    /// is always the world frame (thesis 4.4).
+    pub shot_radius: f64,
+    /// Seed of the Poisson-disc sampling (results are deterministic for a seed); default 0.
+    pub seed: u64,
+    /// Treatment of the model's ends when shrinking; default [`BoundaryMode::Preserve`].
+    pub boundary: BoundaryMode,
+    /// Seam welding tolerance, relative to the smallest cell edge (the shortest principal offset,
+    /// or the dense spacing); default 10⁻⁶. 0 disables seam welding.
+    pub weld_tolerance: f64,
+    /// Largest retargeting space Ω accepted, in voxels (graph nodes); default 10⁶. The thesis's
+    /// interactive graphs have < 1,000 nodes (4.4), its dense baselines < 10⁴ (Fig. 4.8).
+    pub max_voxels: u64,
+    /// Largest offset space Φ accepted, in labels; default 10⁴ (the thesis uses ≤ 64).
+    pub max_labels: u64,
+    /// Run even above `max_voxels` / `max_labels` (the CLI's `--force`). A flag rather than a
+    /// mode enum because it only lifts a safety limit. Default false.
+    pub force: bool,
+    /// Options of the alpha-expansion that minimises eq. 4.3 (cycles, label order, the finite
+    /// stand-in for +∞ inside moves).
+    pub graph_cut: AlphaExpansionOptions,
+}
+
+impl Default for RetargetOptions {
+    fn default() -> Self {
+        RetargetOptions {
+            method: RetargetMethod::Offsets,
+            dummy_length: 0.2,
+            dense_spacing: 0.1,
+            sample_spacing: 0.02,
+            feature_spacing: 0.06,
+            shot_radius: 0.2,
+            seed: 0,
+            boundary: BoundaryMode::Preserve,
+            weld_tolerance: 1e-6,
+            max_voxels: 1_000_000,
+            max_labels: 10_000,
+            force: false,
+            graph_cut: AlphaExpansionOptions::default(),
+        }
+    }
+}
+
+impl RetargetOptions {
+    /// Checks that every option is in its valid range.
+    pub fn validate(&self) -> RetargetResult<()> {
+        let positive = |name: &'static str, v: f64| {
+            if v > 0.0 && v.is_finite() {
+                Ok(())
+            } else {
+                Err(RetargetError::InvalidOption {
+                    name,
+                    message: format!("must be a positive length in normalised units, got {v}"),
+                })
+            }
+        };
+        positive("dummy_length", self.dummy_length)?;
+        positive("dense_spacing", self.dense_spacing)?;
+        positive("sample_spacing", self.sample_spacing)?;
+        positive("feature_spacing", self.feature_spacing)?;
+        positive("shot_radius", self.shot_radius)?;
+        if self.sample_spacing < 1e-4 {
+            return Err(RetargetError::InvalidOption {
+                name: "sample_spacing",
+                message: format!(
+                    "{} would draw hundreds of millions of samples; use at least 1e-4 (the thesis uses 0.02)",
+                    self.sample_spacing
+                ),
+            });
+        }
+        if !(self.weld_tolerance >= 0.0 && self.weld_tolerance < 0.5) {
+            return Err(RetargetError::InvalidOption {
+                name: "weld_tolerance",
+                message: format!("must be in [0, 0.5) of the cell size, got {}", self.weld_tolerance),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Wall-clock time of each stage, in milliseconds (the precomputation is done once per
+/// [`RetargetSession`]; its stages are repeated in every report of the session).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct StageTimings {
+    /// Normalisation, canonical map, voxel grid and triangle assignment.
+    pub voxelize_ms: f64,
+    /// Poisson-disc sampling of the dense cloud and the features.
+    pub sampling_ms: f64,
+    /// SHOT descriptors.
+    pub descriptors_ms: f64,
+    /// Hausdorff distances between voxel descriptor sets needed by this solve (cached per session).
+    pub distances_ms: f64,
+    /// Alpha-expansion (graph cuts) of eq. 4.3.
+    pub graph_cut_ms: f64,
+    /// Copying, translating and welding the geometry.
+    pub stitch_ms: f64,
+}
+
+/// What a retargeting run did: the graph-cut figures of thesis Fig. 4.8 and the output's counts.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RetargetReport {
+    /// The method used.
+    pub method: RetargetMethod,
+    /// Steps requested along the principal offsets.
+    pub steps: [i32; 3],
+    /// Steps along the grid's axes (equal to `steps` for [`RetargetMethod::Offsets`]; regular
+    /// steps of the dense spacing for [`RetargetMethod::Dense`]).
+    pub grid_steps: [i32; 3],
+    /// Number of principal offsets given (the rest of the three grid axes are dummies).
+    pub num_offsets: usize,
+    /// Voxel edge lengths along the grid axes, normalised units.
+    pub pitch: [f64; 3],
+    /// Input grid, voxels per axis (U_in, V_in, W_in).
+    pub input_voxels: [usize; 3],
+    /// Retargeting space Ω, voxels per axis.
+    pub output_voxels: [usize; 3],
+    /// Graph nodes: voxels of Ω.
+    pub nodes: usize,
+    /// Labels: size M of the offset space.
+    pub labels: usize,
+    /// Graph edges (26-neighbourhood pairs).
+    pub edges: usize,
+    /// Input voxels that hold triangles.
+    pub occupied_voxels: usize,
+    /// Dense support samples.
+    pub samples: usize,
+    /// Features (SHOT keypoints) described, including the fallbacks of small voxels.
+    pub features: usize,
+    /// Valid SHOT descriptors in the voxel sets.
+    pub descriptors: usize,
+    /// Hausdorff distances computed for this solve (others came from the session's cache).
+    pub distances_computed: usize,
+    /// Energy of the start labelling (may be +∞).
+    pub initial_energy: f64,
+    /// Energy of eq. 4.3 at the solution (+∞ when no seam-consistent labelling exists).
+    pub energy: f64,
+    /// Alpha-expansion cycles.
+    pub cycles: usize,
+    /// Expansion moves (graph cuts) solved.
+    pub moves: usize,
+    /// Why alpha-expansion stopped.
+    pub termination: Termination,
+    /// Edges whose voxels copy from different copies.
+    pub seams: usize,
+    /// Distinct labels in the solution.
+    pub labels_used: usize,
+    /// Time of the graph cut, ms (Fig. 4.8's figure).
+    pub graph_cut_ms: f64,
+    /// Time of this solve (distances, graph cut, stitching), ms.
+    pub solve_ms: f64,
+    /// Precomputation plus this solve, ms: the cost of a one-shot [`retarget`].
+    pub total_ms: f64,
+    /// Time per stage.
+    pub stages: StageTimings,
+    /// Output vertices.
+    pub output_vertices: usize,
+    /// Output triangles.
+    pub output_triangles: usize,
+    /// Connected components of the output.
+    pub output_components: usize,
+    /// Boundary edges of the output (cracks along seams show up here; closed inputs give 0).
+    pub output_boundary_edges: usize,
+    /// Vertices merged by seam welding.
+    pub welded_vertices: usize,
+    /// `normalized_from_model`, row-major 4×4.
+    pub normalized_from_model: Mat4,
+    /// `canonical_from_normalized`, row-major 3×3 (identity for the dense baseline).
+    pub canonical_from_normalized: Mat3,
+}
+
+/// The result of retargeting.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Retargeted {
+    /// The resized model, model units.
+    pub mesh: TriMesh,
+    /// What was done.
+    pub report: RetargetReport,
+    /// The step vector `k` chosen for every voxel of Ω (`#nodes`, first grid axis fastest): the
+    /// voxel copies input voxel `x − k`, shifted by `Σ kᵢ vᵢ`.
+    pub voxel_labels: Vec<[i32; 3]>,
+    /// The voxel of Ω each output triangle was copied into (`#F`, indices into `voxel_labels`),
+    /// e.g. to colour the result by label as in thesis Fig. 4.4 c.
+    pub triangle_voxels: Vec<u32>,
+}
+
+/// Precomputed retargeting of one model (normalisation, canonical map, voxel grid, descriptors),
+/// solved for any number of step vectors; Hausdorff distances are cached between solves.
+#[derive(Debug, Clone)]
+pub struct RetargetSession {
+    options: RetargetOptions,
+    mesh: TriMesh,
+    principal_offsets: Vec<Point3>,
+    lattice: Lattice,
+    grid: VoxelGrid,
+    tri_voxel: Vec<u32>,
+    descriptors: VoxelDescriptors,
+    cache: DistanceCache,
+    precompute: StageTimings,
+    precompute_ms: f64,
+}
+
+impl RetargetSession {
+    /// Normalises `mesh`, builds the canonical space of `principal_offsets` (model units, 1–3
+    /// vectors), voxelises the input and computes the voxels' descriptor sets.
+    ///
+    /// # Errors
+    /// [`RetargetError::NoFaces`] for meshes without triangles, [`RetargetError::InvalidOffsets`],
+    /// [`RetargetError::InvalidOption`], [`RetargetError::TooLarge`] when the input grid alone
+    /// exceeds `max_voxels`, and sampling/descriptor failures.
+    pub fn new(
+        mesh: &TriMesh,
+        principal_offsets: &[Point3],
+        options: &RetargetOptions,
+        progress: &dyn Progress,
+    ) -> RetargetResult<RetargetSession> {
+        let t0 = Instant::now();
+        options.validate()?;
+        mesh.validate()?;
+        if mesh.triangles.is_empty() {
+            return Err(RetargetError::NoFaces { vertices: mesh.positions.len() });
+        }
+        progress.start("voxelize", 0);
+        let normalization = Normalization::of_mesh(mesh)?;
+        // Always validated, also for the baseline, which needs them for its step counts.
+        let offsets_lattice = Lattice::from_offsets(normalization, principal_offsets, options.dummy_length)?;
+        let lattice = match options.method {
+            RetargetMethod::Offsets => offsets_lattice,
+            RetargetMethod::Dense => dense::dense_lattice(normalization, options.dense_spacing),
+        };
+        // Count the input voxels before allocating anything per voxel.
+        let dims = input_dims(&lattice, mesh);
+        let count: u128 = dims.iter().map(|&d| d as u128).product();
+        if count > options.max_voxels as u128 && !options.force {
+            return Err(RetargetError::TooLarge {
+                what: "input voxel grid",
+                unit: "voxels",
+                value: count,
+                limit: options.max_voxels as u128,
+            });
+        }
+        let grid = VoxelGrid::covering(&lattice, &mesh.positions);
+        let tri_voxel = voxels::assign_triangles(mesh, &lattice, &grid);
+        progress.finish();
+        let voxelize_ms = t0.elapsed().as_secs_f64() * 1e3;
+
+        let t1 = Instant::now();
+        let mut normalized = mesh.clone();
+        for p in &mut normalized.positions {
+            *p = normalization.apply(*p);
+        }
+        let params = DescriptorParams {
+            sample_spacing: options.sample_spacing,
+            feature_spacing: options.feature_spacing,
+            shot_radius: options.shot_radius,
+            seed: options.seed,
+        };
+        let (descriptors, sampling_ms) =
+            voxels::describe_voxels(&normalized, &tri_voxel, grid.len(), &params, progress)?;
+        let descriptors_ms = t1.elapsed().as_secs_f64() * 1e3 - sampling_ms;
+        Ok(RetargetSession {
+            options: options.clone(),
+            mesh: mesh.clone(),
+            principal_offsets: principal_offsets.to_vec(),
+            lattice,
+            grid,
+            tri_voxel,
+            descriptors,
+            cache: DistanceCache::new(),
+            precompute: StageTimings { voxelize_ms, sampling_ms, descriptors_ms, ..Default::default() },
+            precompute_ms: t0.elapsed().as_secs_f64() * 1e3,
+        })
+    }
+
+    /// Voxels of the input grid per axis (U_in, V_in, W_in).
+    pub fn input_voxels(&self) -> [usize; 3] {
+        self.grid.dims
+    }
+
+    /// Voxel edge lengths along the grid axes, normalised units.
+    pub fn pitch(&self) -> [f64; 3] {
+        self.grid.pitch
+    }
+
+    /// The model → normalised-space similarity.
+    pub fn normalization(&self) -> Normalization {
+        self.lattice.normalization
+    }
+
+    /// The options the session was built with.
+    pub fn options(&self) -> &RetargetOptions {
+        &self.options
+    }
+
+    /// Resizes the model by `steps[i]` principal offsets along offset `i` (negative shrinks; 0
+    /// for dummy directions).
+    ///
+    /// # Errors
+    /// [`RetargetError::StepsAlongDummy`], [`RetargetError::ShrinkBelowOneCell`],
+    /// [`RetargetError::TooLarge`] (Ω above `max_voxels`, Φ above `max_labels`, unless `force`).
+    pub fn retarget(&mut self, steps: [i32; 3], progress: &dyn Progress) -> RetargetResult<Retargeted> {
+        let t0 = Instant::now();
+        let num_offsets = self.principal_offsets.len();
+        for (a, &s) in steps.iter().enumerate() {
+            if a >= num_offsets && s != 0 {
+                return Err(RetargetError::StepsAlongDummy { direction: a, steps: s, offsets: num_offsets });
+            }
+        }
+        let grid_steps_wide: [i64; 3] = match self.options.method {
+            RetargetMethod::Offsets => steps.map(i64::from),
+            RetargetMethod::Dense => dense::dense_steps(
+                &self.lattice.normalization,
+                &self.principal_offsets,
+                steps,
+                self.options.dense_spacing,
+            ),
+        };
+        let limit = |what, unit, value: u128, limit: u64| {
+            if value > limit as u128 && !self.options.force {
+                Err(RetargetError::TooLarge { what, unit, value, limit: limit as u128 })
+            } else {
+                Ok(())
+            }
+        };
+        let mut out_dims = [0usize; 3];
+        let mut voxels: u128 = 1;
+        let mut labels: u128 = 1;
+        for a in 0..3 {
+            let s = grid_steps_wide[a];
+            let n_in = self.grid.dims[a];
+            let n_out = n_in as i64 + s;
+            let minimum = if s < 0 && self.options.boundary == BoundaryMode::Preserve { 2 } else { 1 };
+            if s < 0 && n_out < minimum as i64 {
+                return Err(RetargetError::ShrinkBelowOneCell {
+                    direction: a,
+                    steps: steps.get(a).copied().unwrap_or(0),
+                    input_voxels: n_in,
+                    output_voxels: n_out,
+                    minimum,
+                    min_steps: minimum as i64 - n_in as i64,
+                });
+            }
+            voxels = voxels.saturating_mul(n_out.max(1) as u128);
+            labels = labels.saturating_mul(s.unsigned_abs() as u128 + 1);
+            out_dims[a] = n_out.max(1) as usize;
+        }
+        limit("retargeting space", "voxels", voxels, self.options.max_voxels)?;
+        limit("offset space", "labels", labels, self.options.max_labels)?;
+        // Past the limits (or forced), the sizes must still fit the graph's u32 indices.
+        if voxels >= u32::MAX as u128 / 16 || labels >= u32::MAX as u128 {
+            return Err(RetargetError::TooLarge {
+                what: "retargeting problem",
+                unit: "voxels x labels",
+                value: voxels.saturating_mul(labels),
+                limit: u32::MAX as u128 / 16,
+            });
+        }
+        let grid_steps = grid_steps_wide.map(|s| s as i32);
+
+        progress.start("graph cut", 0);
+        let solved = energy::solve(
+            &self.grid,
+            &self.descriptors,
+            grid_steps,
+            self.options.boundary,
+            &mut self.cache,
+            &self.options.graph_cut,
+        )?;
+        progress.finish();
+
+        progress.start("stitch", 0);
+        let t_stitch = Instant::now();
+        let min_pitch = (0..3)
+            .filter(|&a| a < self.lattice.num_active)
+            .map(|a| self.lattice.pitch[a])
+            .fold(f64::INFINITY, f64::min);
+        let weld_tolerance = self.options.weld_tolerance * min_pitch / self.lattice.normalization.scale;
+        let stitched = stitch::stitch(
+            &self.mesh,
+            &self.tri_voxel,
+            &self.grid,
+            out_dims,
+            &solved.labels,
+            &self.lattice,
+            weld_tolerance,
+        );
+        let stitch_ms = t_stitch.elapsed().as_secs_f64() * 1e3;
+        progress.finish();
+
+        let edge_stats = stitched.mesh.edge_stats();
+        let components = stitched.mesh.components().count;
+        let solve_ms = t0.elapsed().as_secs_f64() * 1e3;
+        let r = &solved.result;
+        let report = RetargetReport {
+            method: self.options.method,
+            steps,
+            grid_steps,
+            num_offsets,
+            pitch: self.grid.pitch,
+            input_voxels: self.grid.dims,
+            output_voxels: out_dims,
+            nodes: solved.labels.len(),
+            labels: grid_steps.iter().map(|s| s.unsigned_abs() as usize + 1).product(),
+            edges: solved.edges,
+            occupied_voxels: self.descriptors.occupied.iter().filter(|o| **o).count(),
+            samples: self.descriptors.num_samples,
+            features: self.descriptors.num_keypoints,
+            descriptors: self.descriptors.num_valid,
+            distances_computed: solved.distances_computed,
+            initial_energy: r.initial_energy,
+            energy: r.energy,
+            cycles: r.cycles,
+            moves: r.moves,
+            termination: r.termination,
+            seams: solved.seams,
+            labels_used: solved.labels_used,
+            graph_cut_ms: r.elapsed_ms,
+            solve_ms,
+            total_ms: self.precompute_ms + solve_ms,
+            stages: StageTimings {
+                distances_ms: solved.distances_ms,
+                graph_cut_ms: r.elapsed_ms,
+                stitch_ms,
+                ..self.precompute
+            },
+            output_vertices: stitched.mesh.positions.len(),
+            output_triangles: stitched.mesh.triangles.len(),
+            output_components: components,
+            output_boundary_edges: edge_stats.boundary,
+            welded_vertices: stitched.welded,
+            normalized_from_model: self.lattice.normalization.matrix(),
+            canonical_from_normalized: self.lattice.canonical_from_normalized,
+        };
+        Ok(Retargeted {
+            mesh: stitched.mesh,
+            report,
+            voxel_labels: solved.labels,
+            triangle_voxels: stitched.triangle_voxels,
+        })
+    }
+}
+
+
+/// Voxels of the input grid per axis, computed without allocating.
+fn input_dims(lattice: &Lattice, mesh: &TriMesh) -> [usize; 3] {
+    VoxelGrid::covering(lattice, &mesh.positions).dims
+}
+
+/// Resizes `mesh` by `steps[i]` copies of `principal_offsets[i]` (model units, 1–3 vectors;
+/// negative steps shrink, steps along missing offsets must be 0), with the method of
+/// `options.method`. One-shot form of [`RetargetSession`].
+///
+/// # Errors
+/// See [`RetargetSession::new`] and [`RetargetSession::retarget`].
+pub fn retarget(
+    mesh: &TriMesh,
+    principal_offsets: &[Point3],
+    steps: [i32; 3],
+    options: &RetargetOptions,
+    progress: &dyn Progress,
+) -> RetargetResult<Retargeted> {
+    RetargetSession::new(mesh, principal_offsets, options, progress)?.retarget(steps, progress)
+}
+
+/// The dense-MRF baseline of thesis 4.5: [`retarget`] with [`RetargetMethod::Dense`] (regular
+/// offsets of `options.dense_spacing` instead of the principal offsets; the output has about the
+/// same size as `steps` principal offsets would give).
+pub fn retarget_dense(
+    mesh: &TriMesh,
+    principal_offsets: &[Point3],
+    steps: [i32; 3],
+    options: &RetargetOptions,
+    progress: &dyn Progress,
+) -> RetargetResult<Retargeted> {
+    let options = RetargetOptions { method: RetargetMethod::Dense, ..options.clone() };
+    retarget(mesh, principal_offsets, steps, &options, progress)
+}

@@ -1,0 +1,341 @@
+//! The voxel grid of the retargeting space and the per-voxel shape descriptors G(x) of thesis
+//! eq. 4.4.
+//!
+//! The grid lives in canonical space ([`super::canonical`]): voxel `(i, j, k)` is the box
+//! `origin + [i, i+1) × pitch₀ × [j, j+1) × pitch₁ × [k, k+1) × pitch₂`, with `origin` the
+//! minimum corner of the input's canonical bounding box (thesis 4.2.2: "discretize Ω … using the
+//! principle offsets as the generators"). Voxels are numbered with the first axis fastest.
+//!
+//! **Triangle assignment.** Each triangle belongs to exactly one input voxel, the one containing
+//! its centroid. A centroid on a voxel face (a board end face lying exactly on a cell boundary,
+//! common in man-made models whose cells the offsets delimit) is ambiguous up to rounding, so the
+//! probe point is the centroid moved inwards by 10⁻⁶ of the smallest cell edge against the face
+//! normal: for closed, outward-oriented parts a face then belongs to the voxel its solid lies in.
+//!
+//! **Descriptors.** G(x) is "the set of SHOT descriptors contained in the voxel" (4.2.2). As in
+//! thesis 4.3, a dense Poisson-disc cloud (spacing 0.02) supports the descriptors and a sparser
+//! feature cloud (spacing 0.06) resampled from it are the keypoints; SHOT uses the world frame
+//! (4.4) and radius 0.2. A feature belongs to the voxel of the triangle it was sampled on, so the
+//! descriptors of a voxel describe exactly the geometry that a copy of the voxel carries. A voxel
+//! with triangles but no feature (a small piece) gets its dense samples as keypoints, or failing
+//! those its triangles' centroids, so that "non-empty" always means "has triangles".
+
+use motif_core::geometry::{Point3, add, scale, sub};
+use motif_core::mesh::TriMesh;
+use motif_core::progress::Progress;
+use motif_core::sampling::{
+    Constraints, PoissonDiscOptions, Spacing, poisson_disc_points, poisson_disc_surface,
+};
+use motif_core::shot::{SHOT_LEN, ShotFrame, ShotOptions, compute_shot_with_tree};
+use motif_core::spatial::KdTree;
+use rayon::prelude::*;
+
+use super::canonical::Lattice;
+use super::error::RetargetResult;
+
+/// A regular grid of voxels in canonical space.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct VoxelGrid {
+    /// Minimum corner, canonical coordinates.
+    pub origin: Point3,
+    /// Voxel edge lengths, normalised units.
+    pub pitch: [f64; 3],
+    /// Number of voxels along each axis.
+    pub dims: [usize; 3],
+}
+
+/// Relative slack when counting voxels: an extent of 5.0000001 cells is 5 cells.
+const COUNT_SLACK: f64 = 1e-6;
+
+impl VoxelGrid {
+    /// The grid covering the canonical bounding box of `points` (model space).
+    pub fn covering(lattice: &Lattice, points: &[Point3]) -> VoxelGrid {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for p in points {
+            let c = lattice.canonical(*p);
+            for a in 0..3 {
+                lo[a] = lo[a].min(c[a]);
+                hi[a] = hi[a].max(c[a]);
+            }
+        }
+        let mut dims = [1; 3];
+        for a in 0..3 {
+            let cells = (hi[a] - lo[a]) / lattice.pitch[a];
+            dims[a] = if cells.is_finite() { ((cells - COUNT_SLACK).ceil().max(1.0)) as usize } else { 1 };
+        }
+        VoxelGrid { origin: lo, pitch: lattice.pitch, dims }
+    }
+
+    /// Number of voxels.
+    pub fn len(&self) -> usize {
+        self.dims[0] * self.dims[1] * self.dims[2]
+    }
+
+    /// Linear index of integer coordinates (first axis fastest).
+    #[inline]
+    pub fn linear(&self, c: [usize; 3]) -> usize {
+        c[0] + self.dims[0] * (c[1] + self.dims[1] * c[2])
+    }
+
+    /// Linear index of signed coordinates, `None` outside the grid.
+    #[inline]
+    pub fn linear_checked(&self, c: [i64; 3]) -> Option<usize> {
+        for a in 0..3 {
+            if c[a] < 0 || c[a] >= self.dims[a] as i64 {
+                return None;
+            }
+        }
+        Some(self.linear([c[0] as usize, c[1] as usize, c[2] as usize]))
+    }
+
+    /// Integer coordinates of a linear index.
+    #[inline]
+    pub fn coords(&self, i: usize) -> [usize; 3] {
+        let x = i % self.dims[0];
+        let r = i / self.dims[0];
+        [x, r % self.dims[1], r / self.dims[1]]
+    }
+
+    /// The voxel containing a canonical point, clamped into the grid.
+    #[inline]
+    pub fn voxel_of(&self, c: Point3) -> [usize; 3] {
+        let mut v = [0; 3];
+        for a in 0..3 {
+            let f = ((c[a] - self.origin[a]) / self.pitch[a]).floor();
+            v[a] = if f.is_finite() { f.clamp(0.0, (self.dims[a] - 1) as f64) as usize } else { 0 };
+        }
+        v
+    }
+}
+
+/// The input voxel (linear index) of every triangle: its centroid probed slightly inwards (see the
+/// module docs).
+pub(crate) fn assign_triangles(mesh: &TriMesh, lattice: &Lattice, grid: &VoxelGrid) -> Vec<u32> {
+    let min_pitch = grid.pitch[0].min(grid.pitch[1]).min(grid.pitch[2]);
+    let delta = 1e-6 * min_pitch;
+    (0..mesh.triangles.len())
+        .into_par_iter()
+        .map(|f| {
+            let [a, b, c] = mesh.corners(f);
+            let centroid = scale(add(add(a, b), c), 1.0 / 3.0);
+            let n = motif_core::geometry::normalize(mesh.face_cross(f)).unwrap_or([0.0; 3]);
+            // Normalised space is a uniform scaling of model space: normals are unchanged.
+            let probe = sub(lattice.canonical(centroid), lattice.canonical_vector(scale(n, delta)));
+            grid.linear(grid.voxel_of(probe)) as u32
+        })
+        .collect()
+}
+
+/// Sampling and descriptor parameters (from [`super::RetargetOptions`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct DescriptorParams {
+    pub sample_spacing: f64,
+    pub feature_spacing: f64,
+    pub shot_radius: f64,
+    pub seed: u64,
+}
+
+/// The descriptor sets G(x) of every input voxel.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct VoxelDescriptors {
+    /// Valid descriptors, grouped by voxel: rows `start[v]..start[v + 1]` belong to voxel `v`;
+    /// each row has [`SHOT_LEN`] values and unit length.
+    pub rows: Vec<f32>,
+    /// Row ranges per voxel (`#voxels + 1`).
+    pub start: Vec<u32>,
+    /// Whether each voxel holds triangles.
+    pub occupied: Vec<bool>,
+    /// Dense support samples drawn.
+    pub num_samples: usize,
+    /// Keypoints described (features plus fallbacks).
+    pub num_keypoints: usize,
+    /// Keypoints with a valid descriptor.
+    pub num_valid: usize,
+}
+
+impl VoxelDescriptors {
+    /// The descriptor rows of voxel `v` (`#rows × 352`).
+    #[inline]
+    pub fn of(&self, v: usize) -> &[f32] {
+        &self.rows[self.start[v] as usize * SHOT_LEN..self.start[v + 1] as usize * SHOT_LEN]
+    }
+}
+
+/// Samples the normalised mesh, describes its features with SHOT and groups the descriptors by
+/// the voxel of the triangle each feature lies on. Reports progress in the stages "sampling" and
+/// "SHOT descriptors"; returns the descriptors and the time spent sampling (ms).
+pub(crate) fn describe_voxels(
+    normalized: &TriMesh,
+    tri_voxel: &[u32],
+    num_voxels: usize,
+    params: &DescriptorParams,
+    progress: &dyn Progress,
+) -> RetargetResult<(VoxelDescriptors, f64)> {
+    let t0 = std::time::Instant::now();
+    let mut occupied = vec![false; num_voxels];
+    for &v in tri_voxel {
+        occupied[v as usize] = true;
+    }
+    progress.start("sampling", 0);
+    let dense = poisson_disc_surface(
+        normalized,
+        &Constraints::default(),
+        &PoissonDiscOptions {
+            spacing: Spacing::Radius(params.sample_spacing),
+            seed: params.seed,
+            ..Default::default()
+        },
+    )?;
+    let mut points = dense.positions.clone();
+    let mut normals = dense.normals.clone().unwrap_or_else(|| vec![[0.0; 3]; points.len()]);
+    let faces = dense.faces.clone().unwrap_or_else(|| vec![0; points.len()]);
+    let mut point_voxel: Vec<u32> = faces.iter().map(|&f| tri_voxel[f as usize]).collect();
+    let mut keypoints: Vec<usize> = if points.is_empty() {
+        Vec::new()
+    } else {
+        poisson_disc_points(
+            &points,
+            None,
+            &Constraints::default(),
+            &PoissonDiscOptions {
+                spacing: Spacing::Radius(params.feature_spacing),
+                seed: params.seed.wrapping_add(1),
+                ..Default::default()
+            },
+        )?
+        .candidate_indices()
+    };
+    // Fallbacks for occupied voxels without a feature.
+    let mut has_key = vec![false; num_voxels];
+    for &k in &keypoints {
+        has_key[point_voxel[k] as usize] = true;
+    }
+    let mut has_sample = vec![false; num_voxels];
+    for (i, &v) in point_voxel.iter().enumerate() {
+        if occupied[v as usize] && !has_key[v as usize] {
+            keypoints.push(i);
+            has_sample[v as usize] = true;
+        }
+    }
+    const MAX_CENTROIDS: usize = 16;
+    let mut centroids_added = vec![0usize; num_voxels];
+    let face_normals = normalized.face_normals();
+    for (f, &v) in tri_voxel.iter().enumerate() {
+        let v = v as usize;
+        if occupied[v] && !has_key[v] && !has_sample[v] && centroids_added[v] < MAX_CENTROIDS {
+            let [a, b, c] = normalized.corners(f);
+            points.push(scale(add(add(a, b), c), 1.0 / 3.0));
+            normals.push(face_normals[f]);
+            point_voxel.push(v as u32);
+            keypoints.push(points.len() - 1);
+            centroids_added[v] += 1;
+        }
+    }
+    progress.finish();
+    let sampling_ms = t0.elapsed().as_secs_f64() * 1e3;
+
+    let mut out = VoxelDescriptors {
+        occupied,
+        num_samples: dense.positions.len(),
+        num_keypoints: keypoints.len(),
+        ..Default::default()
+    };
+    if points.is_empty() {
+        out.start = vec![0; num_voxels + 1];
+        return Ok((out, sampling_ms));
+    }
+    let tree = KdTree::new(&points)?;
+    let shot = compute_shot_with_tree(
+        &tree,
+        &points,
+        &normals,
+        &keypoints,
+        &ShotOptions { radius: params.shot_radius, frame: ShotFrame::World, ..Default::default() },
+        progress,
+    )?;
+    // Group valid rows by voxel (stable: keypoint order within a voxel).
+    let mut count = vec![0u32; num_voxels + 1];
+    for (i, &k) in keypoints.iter().enumerate() {
+        if shot.valid[i] {
+            count[point_voxel[k] as usize + 1] += 1;
+        }
+    }
+    for v in 0..num_voxels {
+        count[v + 1] += count[v];
+    }
+    let total = count[num_voxels] as usize;
+    let mut rows = vec![0f32; total * SHOT_LEN];
+    let mut fill = count.clone();
+    for (i, &k) in keypoints.iter().enumerate() {
+        if let (true, Some(d)) = (shot.valid[i], shot.descriptor(i)) {
+            let v = point_voxel[k] as usize;
+            let r = fill[v] as usize;
+            rows[r * SHOT_LEN..(r + 1) * SHOT_LEN].copy_from_slice(d);
+            fill[v] += 1;
+        }
+    }
+    out.rows = rows;
+    out.start = count;
+    out.num_valid = total;
+    Ok((out, sampling_ms))
+}
+
+/// Distance given to two non-empty voxels when one of them has no valid descriptor: √2, the
+/// largest distance between two unit SHOT descriptors (whose entries are non-negative).
+pub(crate) const UNKNOWN_DISTANCE: f64 = std::f64::consts::SQRT_2;
+
+/// The Hausdorff distance d_H between two descriptor sets (rows of [`SHOT_LEN`] values), with the
+/// L2 norm between descriptors (thesis 4.2.2). Empty sets give [`UNKNOWN_DISTANCE`].
+pub(crate) fn hausdorff(a: &[f32], b: &[f32]) -> f64 {
+    let (na, nb) = (a.len() / SHOT_LEN, b.len() / SHOT_LEN);
+    if na == 0 || nb == 0 {
+        return UNKNOWN_DISTANCE;
+    }
+    let sq = |r: &[f32]| r.iter().map(|x| x * x).sum::<f32>();
+    let norm_a: Vec<f32> = a.chunks_exact(SHOT_LEN).map(sq).collect();
+    let norm_b: Vec<f32> = b.chunks_exact(SHOT_LEN).map(sq).collect();
+    let mut row_min = vec![f32::INFINITY; na];
+    let mut col_min = vec![f32::INFINITY; nb];
+    for (i, ra) in a.chunks_exact(SHOT_LEN).enumerate() {
+        for (j, rb) in b.chunks_exact(SHOT_LEN).enumerate() {
+            let d: f32 = ra.iter().zip(rb).map(|(x, y)| x * y).sum();
+            let d2 = (norm_a[i] + norm_b[j] - 2.0 * d).max(0.0);
+            row_min[i] = row_min[i].min(d2);
+            col_min[j] = col_min[j].min(d2);
+        }
+    }
+    let m = row_min.iter().chain(&col_min).fold(0f32, |m, &x| m.max(x));
+    (m as f64).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hausdorff_of_identical_sets_is_zero_and_symmetric() {
+        let mut a = vec![0f32; 2 * SHOT_LEN];
+        a[0] = 1.0;
+        a[SHOT_LEN + 1] = 1.0;
+        let mut b = vec![0f32; SHOT_LEN];
+        b[0] = 1.0;
+        assert!(hausdorff(&a, &a) < 1e-6);
+        let d = hausdorff(&a, &b);
+        assert!((d - std::f64::consts::SQRT_2).abs() < 1e-6, "{d}");
+        assert_eq!(hausdorff(&a, &b), hausdorff(&b, &a));
+        assert_eq!(hausdorff(&a, &[]), UNKNOWN_DISTANCE);
+    }
+
+    #[test]
+    fn grid_indexing_round_trips() {
+        let g = VoxelGrid { origin: [0.0; 3], pitch: [0.5, 0.25, 1.0], dims: [3, 4, 2] };
+        for i in 0..g.len() {
+            assert_eq!(g.linear(g.coords(i)), i);
+        }
+        assert_eq!(g.voxel_of([1.2, 0.3, 5.0]), [2, 1, 1]);
+        assert_eq!(g.voxel_of([-1.0, 0.0, 0.0]), [0, 0, 0]);
+        assert_eq!(g.linear_checked([3, 0, 0]), None);
+        assert_eq!(g.linear_checked([2, 3, 1]), Some(g.len() - 1));
+    }
+}

@@ -1,0 +1,584 @@
+//! Quality tests of offset-based retargeting (thesis 4.2.2, 4.4) and the dense baseline (4.5) on
+//! generated shapes with known lattices: cell counts, per-cell residuals against the input's
+//! cells, comparisons with the generator's own larger/smaller shapes, errors, and invariances.
+
+use std::collections::HashMap;
+
+use motif_core::geometry::{Point3, add, cross, dot, norm, scale, sub};
+use motif_core::mesh::TriMesh;
+use motif_core::procedural::{FenceOptions, ShelfOptions, fence, generate, shelf};
+use motif_core::progress::NoProgress;
+use motif_core::sampling::sample_surface;
+use motif_retarget::retarget::{
+    BoundaryMode, RetargetError, RetargetMethod, RetargetOptions, RetargetSession, Retargeted, retarget,
+    retarget_dense,
+};
+
+// ---------------------------------------------------------------------------------------------
+// Geometry helpers
+// ---------------------------------------------------------------------------------------------
+
+/// Closest point on triangle `abc` to `p` (Ericson, Real-Time Collision Detection, 5.1.5).
+fn closest_on_triangle(p: Point3, a: Point3, b: Point3, c: Point3) -> Point3 {
+    let (ab, ac, ap) = (sub(b, a), sub(c, a), sub(p, a));
+    let (d1, d2) = (dot(ab, ap), dot(ac, ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = sub(p, b);
+    let (d3, d4) = (dot(ab, bp), dot(ac, bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return add(a, scale(ab, d1 / (d1 - d3)));
+    }
+    let cp = sub(p, c);
+    let (d5, d6) = (dot(ab, cp), dot(ac, cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return add(a, scale(ac, d2 / (d2 - d6)));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return add(b, scale(sub(c, b), (d4 - d3) / ((d4 - d3) + (d5 - d6))));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    add(a, add(scale(ab, vb * denom), scale(ac, vc * denom)))
+}
+
+/// Point-to-surface distances, exact below `cap` and `cap` above it.
+struct SurfaceDistance {
+    tris: Vec<[Point3; 3]>,
+    bin: f64,
+    cap: f64,
+    bins: HashMap<[i64; 3], Vec<u32>>,
+}
+
+impl SurfaceDistance {
+    fn new(mesh: &TriMesh, cap: f64, bin: f64) -> Self {
+        let tris: Vec<[Point3; 3]> = (0..mesh.triangles.len()).map(|f| mesh.corners(f)).collect();
+        let mut bins: HashMap<[i64; 3], Vec<u32>> = HashMap::new();
+        let key = |x: f64| (x / bin).floor() as i64;
+        for (f, t) in tris.iter().enumerate() {
+            let lo: [i64; 3] = std::array::from_fn(|a| key(t.iter().map(|p| p[a]).fold(f64::INFINITY, f64::min) - cap));
+            let hi: [i64; 3] =
+                std::array::from_fn(|a| key(t.iter().map(|p| p[a]).fold(f64::NEG_INFINITY, f64::max) + cap));
+            for x in lo[0]..=hi[0] {
+                for y in lo[1]..=hi[1] {
+                    for z in lo[2]..=hi[2] {
+                        bins.entry([x, y, z]).or_default().push(f as u32);
+                    }
+                }
+            }
+        }
+        SurfaceDistance { tris, bin, cap, bins }
+    }
+
+    fn distance(&self, p: Point3) -> f64 {
+        let k = p.map(|c| (c / self.bin).floor() as i64);
+        let mut best = self.cap;
+        if let Some(list) = self.bins.get(&k) {
+            for &f in list {
+                let [a, b, c] = self.tris[f as usize];
+                best = best.min(norm(sub(p, closest_on_triangle(p, a, b, c))));
+            }
+        }
+        best
+    }
+}
+
+/// Surface samples plus all vertices.
+fn samples(mesh: &TriMesh, n: usize) -> Vec<Point3> {
+    let mut pts = sample_surface(mesh, n, 7).map(|s| s.points).unwrap_or_default();
+    pts.extend_from_slice(&mesh.positions);
+    pts
+}
+
+/// Largest distance from either mesh's samples to the other mesh (capped).
+fn two_sided_distance(a: &TriMesh, b: &TriMesh, cap: f64) -> f64 {
+    let bin = (a.diagonal() / 40.0).max(cap);
+    let (da, db) = (SurfaceDistance::new(a, cap, bin), SurfaceDistance::new(b, cap, bin));
+    let ab = samples(a, 20_000).iter().map(|p| db.distance(*p)).fold(0.0, f64::max);
+    let ba = samples(b, 20_000).iter().map(|p| da.distance(*p)).fold(0.0, f64::max);
+    ab.max(ba)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Cells of a lattice
+// ---------------------------------------------------------------------------------------------
+
+/// The cells of a model's lattice: the parallelepipeds spanned by the pitch vectors, starting at
+/// the minimum corner of the model in lattice coordinates (the same grid the retargeting uses).
+/// Directions without a pitch vector form a single cell covering the model.
+struct CellGrid {
+    origin: Point3,
+    /// Lattice coordinates of a model point: rows of the inverse of [a b c].
+    inv: [[f64; 3]; 3],
+    vectors: [Point3; 3],
+    counts: [usize; 3],
+    num_real: usize,
+}
+
+impl CellGrid {
+    fn new(mesh: &TriMesh, pitch: &[Point3]) -> CellGrid {
+        let mut v: Vec<Point3> = pitch.to_vec();
+        let ext = mesh.diagonal() * 4.0;
+        // Complete with orthogonal directions long enough to hold the model in one cell.
+        let axes = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        for ax in axes {
+            if v.len() == 3 {
+                break;
+            }
+            let mut d = ax;
+            for u in &v {
+                let un = scale(*u, 1.0 / norm(*u));
+                d = sub(d, scale(un, dot(d, un)));
+            }
+            if norm(d) > 0.5 {
+                v.push(scale(d, ext / norm(d)));
+            }
+        }
+        let (a, b, c) = (v[0], v[1], v[2]);
+        let det = dot(a, cross(b, c));
+        let inv = [
+            scale(cross(b, c), 1.0 / det),
+            scale(cross(c, a), 1.0 / det),
+            scale(cross(a, b), 1.0 / det),
+        ];
+        let coords = |p: Point3| [dot(inv[0], p), dot(inv[1], p), dot(inv[2], p)];
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for p in &mesh.positions {
+            let u = coords(*p);
+            for k in 0..3 {
+                lo[k] = lo[k].min(u[k]);
+                hi[k] = hi[k].max(u[k]);
+            }
+        }
+        let origin = add(add(scale(a, lo[0]), scale(b, lo[1])), scale(c, lo[2]));
+        let counts = std::array::from_fn(|k| ((hi[k] - lo[k]) - 1e-6).ceil().max(1.0) as usize);
+        CellGrid { origin, inv, vectors: [a, b, c], counts, num_real: pitch.len() }
+    }
+
+    /// The cell of `p` when `p` is at least `margin` (lattice units) inside it.
+    fn cell(&self, p: Point3, margin: f64) -> Option<[usize; 3]> {
+        let q = sub(p, self.origin);
+        let mut c = [0; 3];
+        for k in 0..3 {
+            let u = dot(self.inv[k], q);
+            let f = u.floor();
+            if u - f < margin || f + 1.0 - u < margin || f < 0.0 || f >= self.counts[k] as f64 {
+                return None;
+            }
+            c[k] = f as usize;
+        }
+        Some(c)
+    }
+
+    fn shift(&self, d: [i64; 3]) -> Point3 {
+        (0..3).fold([0.0; 3], |t, k| add(t, scale(self.vectors[k], d[k] as f64)))
+    }
+
+    fn len(&self) -> usize {
+        self.counts.iter().product()
+    }
+}
+
+/// Per-cell comparison of an output with its input.
+struct CellReport {
+    cells: usize,
+    broken: usize,
+    worst_intact: f64,
+    /// Best-matching input cell of every output cell (`None` when broken).
+    matches: HashMap<[usize; 3], [usize; 3]>,
+}
+
+/// Checks every cell of `output` against the input cells it may copy: an output cell on the low
+/// (high) end of a lattice direction against the input's low (high) end, an interior cell against
+/// the input's interior cells. A cell is intact when, for some candidate, every sample of the
+/// output cell lies within `tol` of the input shifted onto it and vice versa.
+fn check_cells(input: &TriMesh, output: &TriMesh, pitch: &[Point3], tol: f64) -> CellReport {
+    let gin = CellGrid::new(input, pitch);
+    let gout = CellGrid::new(output, pitch);
+    // The output grid must start where the input's does (the low ends are kept).
+    assert!(norm(sub(gin.origin, gout.origin)) < tol, "output lattice origin moved");
+    let cap = 4.0 * tol;
+    let bin = pitch.iter().map(|v| norm(*v)).fold(f64::INFINITY, f64::min) / 6.0;
+    let (din, dout) = (SurfaceDistance::new(input, cap, bin), SurfaceDistance::new(output, cap, bin));
+    let group = |g: &CellGrid, m: &TriMesh| {
+        let mut by: HashMap<[usize; 3], Vec<Point3>> = HashMap::new();
+        for p in samples(m, 60 * m.triangles.len().max(1000)) {
+            if let Some(c) = g.cell(p, 1e-4) {
+                by.entry(c).or_default().push(p);
+            }
+        }
+        by
+    };
+    let (pin, pout) = (group(&gin, input), group(&gout, output));
+    let empty = Vec::new();
+    let mut report = CellReport { cells: gout.len(), broken: 0, worst_intact: 0.0, matches: HashMap::new() };
+    for x in 0..gout.len() {
+        let xc = [x % gout.counts[0], (x / gout.counts[0]) % gout.counts[1], x / (gout.counts[0] * gout.counts[1])];
+        let cand: Vec<Vec<usize>> = (0..3)
+            .map(|k| {
+                let (n_in, n_out) = (gin.counts[k], gout.counts[k]);
+                if k >= gin.num_real || n_in < 3 {
+                    if k >= gin.num_real { vec![xc[k]] } else { (0..n_in).collect() }
+                } else if xc[k] == 0 {
+                    vec![0]
+                } else if xc[k] == n_out - 1 {
+                    vec![n_in - 1]
+                } else {
+                    (1..n_in - 1).collect()
+                }
+            })
+            .collect();
+        let mut best = (f64::INFINITY, [0; 3]);
+        for &i in &cand[0] {
+            for &j in &cand[1] {
+                for &k in &cand[2] {
+                    let y = [i, j, k];
+                    let d = [0, 1, 2].map(|a| y[a] as i64 - xc[a] as i64);
+                    let t = gin.shift(d);
+                    let r1 = pout.get(&xc).unwrap_or(&empty).iter().map(|p| din.distance(add(*p, t))).fold(0.0, f64::max);
+                    let r2 = pin.get(&y).unwrap_or(&empty).iter().map(|p| dout.distance(sub(*p, t))).fold(0.0, f64::max);
+                    let r = r1.max(r2);
+                    if r < best.0 {
+                        best = (r, y);
+                    }
+                }
+            }
+        }
+        if best.0 < tol {
+            report.worst_intact = report.worst_intact.max(best.0);
+            report.matches.insert(xc, best.1);
+        } else {
+            report.broken += 1;
+        }
+    }
+    report
+}
+
+// ---------------------------------------------------------------------------------------------
+// Shapes
+// ---------------------------------------------------------------------------------------------
+
+fn run(mesh: &TriMesh, pitch: &[Point3], steps: [i32; 3], method: RetargetMethod) -> Retargeted {
+    let options = RetargetOptions { method, ..Default::default() };
+    retarget(mesh, pitch, steps, &options, &NoProgress).unwrap_or_else(|e| panic!("retarget {steps:?}: {e}"))
+}
+
+fn min_pitch(pitch: &[Point3]) -> f64 {
+    pitch.iter().map(|v| norm(*v)).fold(f64::INFINITY, f64::min)
+}
+
+/// Components of a shelf by kind (boards, panels, joints), from their extents in lattice units.
+fn shelf_parts(mesh: &TriMesh, pitch: &[Point3]) -> [usize; 3] {
+    let g = CellGrid::new(mesh, pitch);
+    let comp = mesh.components();
+    let mut lo: HashMap<u32, [f64; 2]> = HashMap::new();
+    let mut hi: HashMap<u32, [f64; 2]> = HashMap::new();
+    for (v, p) in mesh.positions.iter().enumerate() {
+        let u = [dot(g.inv[0], *p), dot(g.inv[1], *p)];
+        let c = comp.vertex_component[v];
+        let l = lo.entry(c).or_insert(u);
+        *l = [l[0].min(u[0]), l[1].min(u[1])];
+        let h = hi.entry(c).or_insert(u);
+        *h = [h[0].max(u[0]), h[1].max(u[1])];
+    }
+    let mut kinds = [0; 3];
+    for (c, l) in &lo {
+        let h = hi[c];
+        let e = [h[0] - l[0], h[1] - l[1]];
+        if e[0] > 0.9 {
+            kinds[0] += 1; // board: one pitch wide
+        } else if e[1] > 0.5 {
+            kinds[1] += 1; // panel: most of a pitch high
+        } else {
+            kinds[2] += 1; // joint block
+        }
+    }
+    kinds
+}
+
+/// Expected part counts of a k × m shelf: boards k·m + k, panels k·m + m, joints m + 1.
+fn shelf_expected(k: usize, m: usize) -> [usize; 3] {
+    [k * m + k, k * m + m, m + 1]
+}
+
+// ---------------------------------------------------------------------------------------------
+// Tests: the shelf
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn shelf_grows_by_one_column_and_one_row() {
+    let ex = generate("shelf", 0).unwrap();
+    let pitch = ex.structure.cell_pitch.clone();
+    let out = run(&ex.mesh, &pitch, [1, 1, 0], RetargetMethod::Offsets);
+    let r = &out.report;
+    eprintln!(
+        "shelf +1,+1: {} nodes, {} labels, {} edges, energy {:.3}, {} cycles, graph cut {:.2} ms, total {:.0} ms",
+        r.nodes, r.labels, r.edges, r.energy, r.cycles, r.graph_cut_ms, r.total_ms
+    );
+    assert_eq!(r.input_voxels, [5, 4, 2], "4×3 cells plus the closing column and top row; 2 dummy voxels deep");
+    assert_eq!(r.output_voxels, [6, 5, 2]);
+    assert_eq!((r.nodes, r.labels), (60, 4));
+    assert!(r.energy.is_finite());
+
+    // Exactly the expected parts: 5×4 cells.
+    assert_eq!(shelf_parts(&out.mesh, &pitch), shelf_expected(5, 4));
+    assert_eq!(r.output_components, 54);
+    assert_eq!(r.output_boundary_edges, 0);
+
+    // The result is the generator's own 5×4 shelf.
+    let reference = shelf(&ShelfOptions { cells: [5, 4], ..Default::default() }).unwrap().mesh;
+    let d = two_sided_distance(&out.mesh, &reference, 0.01);
+    eprintln!("shelf +1,+1: distance to the generated 5×4 shelf {d:.2e} m");
+    assert!(d < 1e-9, "{d}");
+
+    // Every cell is a complete copy of an input cell.
+    let tol = 0.01 * min_pitch(&pitch);
+    let cells = check_cells(&ex.mesh, &out.mesh, &pitch, tol);
+    eprintln!(
+        "shelf +1,+1: {} cells checked (5×4 + closing column and row), {} broken, worst residual {:.2e} m (tol {tol:.2e})",
+        cells.cells, cells.broken, cells.worst_intact
+    );
+    assert_eq!(cells.cells, 30);
+    assert_eq!(cells.broken, 0);
+
+    motif_core::io::write_mesh(std::path::Path::new("/tmp/retarget-shelf.obj"), &out.mesh).unwrap();
+}
+
+#[test]
+fn shelf_shrinks_by_one_column_and_one_row() {
+    let ex = generate("shelf", 0).unwrap();
+    let pitch = ex.structure.cell_pitch.clone();
+    let out = run(&ex.mesh, &pitch, [-1, -1, 0], RetargetMethod::Offsets);
+    assert_eq!(out.report.output_voxels, [4, 3, 2]);
+    assert_eq!(shelf_parts(&out.mesh, &pitch), shelf_expected(3, 2));
+    let reference = shelf(&ShelfOptions { cells: [3, 2], ..Default::default() }).unwrap().mesh;
+    let d = two_sided_distance(&out.mesh, &reference, 0.01);
+    eprintln!("shelf -1,-1: distance to the generated 3×2 shelf {d:.2e} m, labels {}", out.report.labels);
+    assert!(d < 1e-9, "{d}");
+    let cells = check_cells(&ex.mesh, &out.mesh, &pitch, 0.01 * min_pitch(&pitch));
+    assert_eq!(cells.broken, 0);
+}
+
+#[test]
+fn shelf_grows_by_two_and_shrinks_one_direction() {
+    let ex = generate("shelf", 0).unwrap();
+    let pitch = ex.structure.cell_pitch.clone();
+    for (steps, cells) in [([2, 0, 0], [6, 3]), ([0, 2, 0], [4, 5]), ([2, -2, 0], [6, 1]), ([-3, 1, 0], [1, 4])] {
+        let out = run(&ex.mesh, &pitch, steps, RetargetMethod::Offsets);
+        assert_eq!(shelf_parts(&out.mesh, &pitch), shelf_expected(cells[0], cells[1]), "{steps:?}");
+        let reference = shelf(&ShelfOptions { cells, ..Default::default() }).unwrap().mesh;
+        let d = two_sided_distance(&out.mesh, &reference, 0.01);
+        assert!(d < 1e-9, "{steps:?}: {d}");
+    }
+}
+
+#[test]
+fn sheared_shelf_grows_in_canonical_space() {
+    let ex = generate("shelf_sheared", 0).unwrap();
+    let pitch = ex.structure.cell_pitch.clone();
+    let out = run(&ex.mesh, &pitch, [1, 1, 0], RetargetMethod::Offsets);
+    let c = out.report.canonical_from_normalized;
+    assert!(c[0][1].abs() > 0.1, "a shear must be undone: {c:?}");
+    assert_eq!(out.report.output_voxels, [6, 5, 2]);
+    assert_eq!(shelf_parts(&out.mesh, &pitch), shelf_expected(5, 4));
+    let reference = shelf(&ShelfOptions { cells: [5, 4], ..ShelfOptions::sheared() }).unwrap().mesh;
+    let d = two_sided_distance(&out.mesh, &reference, 0.01);
+    eprintln!("shelf_sheared +1,+1: distance to the generated sheared 5×4 shelf {d:.2e} m");
+    assert!(d < 1e-9, "{d}");
+    let cells = check_cells(&ex.mesh, &out.mesh, &pitch, 0.01 * min_pitch(&pitch));
+    assert_eq!(cells.broken, 0);
+
+    let small = run(&ex.mesh, &pitch, [-1, -1, 0], RetargetMethod::Offsets);
+    let reference = shelf(&ShelfOptions { cells: [3, 2], ..ShelfOptions::sheared() }).unwrap().mesh;
+    assert!(two_sided_distance(&small.mesh, &reference, 0.01) < 1e-9);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Tests: fence and facade
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn fence_grows_and_shrinks_along_its_one_offset() {
+    let ex = generate("fence", 0).unwrap();
+    let pitch = ex.structure.cell_pitch.clone();
+    assert_eq!(pitch.len(), 1);
+    for (steps, posts) in [(2, 10), (-3, 5)] {
+        let out = run(&ex.mesh, &pitch, [steps, 0, 0], RetargetMethod::Offsets);
+        let reference = fence(&FenceOptions { posts, ..Default::default() }).unwrap().mesh;
+        let d = two_sided_distance(&out.mesh, &reference, 0.01);
+        let cells = check_cells(&ex.mesh, &out.mesh, &pitch, 0.01 * min_pitch(&pitch));
+        eprintln!(
+            "fence {steps:+}: {} nodes, {} labels, {} posts expected, distance to reference {d:.2e}, {} cells / {} broken, {} welded vertices, {} components",
+            out.report.nodes,
+            out.report.labels,
+            posts,
+            cells.cells,
+            cells.broken,
+            out.report.welded_vertices,
+            out.report.output_components
+        );
+        assert!(d < 1e-9, "{d}");
+        assert_eq!(cells.broken, 0);
+        // Posts plus two rails per bay, each a closed box: the rails' seam copies are welded.
+        assert_eq!(out.report.output_components, posts + 2 * (posts - 1));
+        assert_eq!(out.report.output_boundary_edges, 0);
+    }
+}
+
+#[test]
+fn facade_grows_by_one_bay_and_one_floor_with_intact_cells() {
+    let ex = generate("facade", 0).unwrap();
+    let pitch = ex.structure.cell_pitch.clone();
+    let out = run(&ex.mesh, &pitch, [1, 1, 0], RetargetMethod::Offsets);
+    let r = &out.report;
+    assert_eq!(r.input_voxels[..2], [5, 4]);
+    assert_eq!(r.output_voxels[..2], [6, 5]);
+    let cells = check_cells(&ex.mesh, &out.mesh, &pitch, 0.01 * min_pitch(&pitch));
+    // Which input cell each output cell copies; the door is input cell (2, 0).
+    let doors = cells.matches.values().filter(|c| **c == [2, 0, 0]).count();
+    eprintln!(
+        "facade +1,+1: {} nodes, {} labels, energy {:.3}, {} cells / {} broken (worst {:.1e} m), {} door(s), boundary edges {}",
+        r.nodes, r.labels, r.energy, cells.cells, cells.broken, cells.worst_intact, doors, r.output_boundary_edges
+    );
+    assert_eq!(cells.cells, 30);
+    assert_eq!(cells.broken, 0);
+    // The door is kept. Whether it is also repeated depends on the descriptor distances: with
+    // SHOT's radius of 0.2 (1.5 m on this 15 m facade) the bays at the facade's ends differ from
+    // the inner bays about as much as the door bay does, so eq. 4.4 may prefer a seam through
+    // the door column (which repeats it) to one next to an end bay. Reported, not asserted.
+    assert!(doors >= 1, "the door must not be lost");
+    assert_eq!(r.output_boundary_edges, 0, "the wall is welded watertight across seams");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Tests: the dense baseline
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn dense_baseline_runs_and_breaks_cells() {
+    let ex = generate("shelf", 0).unwrap();
+    let pitch = ex.structure.cell_pitch.clone();
+    let offsets = run(&ex.mesh, &pitch, [1, 1, 0], RetargetMethod::Offsets);
+    let dense = retarget_dense(&ex.mesh, &pitch, [1, 1, 0], &RetargetOptions::default(), &NoProgress).unwrap();
+    let (o, d) = (&offsets.report, &dense.report);
+    assert_eq!(d.method, RetargetMethod::Dense);
+    assert_eq!(d.pitch, [0.1; 3]);
+    assert!(d.nodes > 10 * o.nodes && d.labels > 5 * o.labels, "{} / {} nodes, {} / {} labels", d.nodes, o.nodes, d.labels, o.labels);
+    let tol = 0.01 * min_pitch(&pitch);
+    let cells_o = check_cells(&ex.mesh, &offsets.mesh, &pitch, tol);
+    let cells_d = check_cells(&ex.mesh, &dense.mesh, &pitch, tol);
+    eprintln!(
+        "shelf +1,+1 with offsets: {} nodes, {} labels, graph cut {:.2} ms, total {:.0} ms, {} of {} cells broken",
+        o.nodes, o.labels, o.graph_cut_ms, o.total_ms, cells_o.broken, cells_o.cells
+    );
+    eprintln!(
+        "shelf +1,+1 dense (0.1): {} nodes, {} labels, grid steps {:?}, graph cut {:.2} ms, total {:.0} ms, {} of {} cells broken, {} boundary edges",
+        d.nodes, d.labels, d.grid_steps, d.graph_cut_ms, d.total_ms, cells_d.broken, cells_d.cells, d.output_boundary_edges
+    );
+    assert_eq!(cells_o.broken, 0);
+    assert!(!dense.mesh.triangles.is_empty());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Tests: errors
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn errors_are_reported() {
+    let ex = generate("shelf", 0).unwrap();
+    let pitch = ex.structure.cell_pitch.clone();
+    let o = RetargetOptions::default();
+    let err = |r: Result<Retargeted, RetargetError>| r.err().unwrap_or_else(|| panic!("expected an error"));
+
+    // 5 voxels across (4 cells + the closing column): the ends need two.
+    let e = err(retarget(&ex.mesh, &pitch, [-4, 0, 0], &o, &NoProgress));
+    assert!(matches!(e, RetargetError::ShrinkBelowOneCell { direction: 0, minimum: 2, .. }), "{e}");
+    assert!(e.to_string().contains("steps >= -3"), "{e}");
+    assert!(matches!(err(retarget(&ex.mesh, &pitch, [0, -9, 0], &o, &NoProgress)), RetargetError::ShrinkBelowOneCell { .. }));
+    // Without end preservation one voxel may remain, not zero.
+    let free = RetargetOptions { boundary: BoundaryMode::Free, ..Default::default() };
+    assert!(retarget(&ex.mesh, &pitch, [-4, 0, 0], &free, &NoProgress).is_ok());
+    assert!(matches!(err(retarget(&ex.mesh, &pitch, [-5, 0, 0], &free, &NoProgress)), RetargetError::ShrinkBelowOneCell { .. }));
+
+    let e = err(retarget(&ex.mesh, &pitch, [0, 0, 1], &o, &NoProgress));
+    assert!(matches!(e, RetargetError::StepsAlongDummy { direction: 2, .. }), "{e}");
+
+    let e = err(retarget(&ex.mesh, &pitch, [100_000, 100_000, 0], &o, &NoProgress));
+    assert!(matches!(e, RetargetError::TooLarge { unit: "voxels", .. }), "{e}");
+    assert!(e.to_string().contains("force"), "{e}");
+    let e = err(retarget(&ex.mesh, &pitch, [i32::MAX, i32::MAX, 0], &RetargetOptions { force: true, ..o.clone() }, &NoProgress));
+    assert!(matches!(e, RetargetError::TooLarge { .. }), "{e}");
+    let e = err(retarget(&ex.mesh, &[[1e-9, 0.0, 0.0]], [1, 0, 0], &o, &NoProgress));
+    assert!(matches!(e, RetargetError::InvalidOffsets { .. }), "{e}");
+    let tiny = [[0.001, 0.0, 0.0], [0.0, 0.001, 0.0], [0.0, 0.0, 0.001]];
+    let e = err(retarget(&ex.mesh, &tiny, [1, 0, 0], &o, &NoProgress));
+    assert!(matches!(e, RetargetError::TooLarge { .. }), "{e}");
+
+    let points_only = TriMesh { positions: ex.mesh.positions.clone(), triangles: Vec::new() };
+    let e = err(retarget(&points_only, &pitch, [1, 0, 0], &o, &NoProgress));
+    assert!(matches!(e, RetargetError::NoFaces { .. }), "{e}");
+    assert!(e.is_bad_input());
+
+    for bad in [vec![], vec![[0.0; 3]], vec![[1.0, 0.0, 0.0], [1.0, 1e-4, 0.0]], vec![[f64::NAN, 0.0, 0.0]]] {
+        let e = err(retarget(&ex.mesh, &bad, [0, 0, 0], &o, &NoProgress));
+        assert!(matches!(e, RetargetError::InvalidOffsets { .. }), "{bad:?}: {e}");
+    }
+    let e = err(retarget(&ex.mesh, &pitch, [1, 0, 0], &RetargetOptions { sample_spacing: 0.0, ..o.clone() }, &NoProgress));
+    assert!(matches!(e, RetargetError::InvalidOption { name: "sample_spacing", .. }), "{e}");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Tests: session, determinism, invariance
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn session_reuses_descriptors_and_is_deterministic() {
+    let ex = generate("shelf", 0).unwrap();
+    let pitch = ex.structure.cell_pitch.clone();
+    let mut s = RetargetSession::new(&ex.mesh, &pitch, &RetargetOptions::default(), &NoProgress).unwrap();
+    assert_eq!(s.input_voxels(), [5, 4, 2]);
+    let a = s.retarget([1, 1, 0], &NoProgress).unwrap();
+    let b = s.retarget([1, 1, 0], &NoProgress).unwrap();
+    assert!(a.report.distances_computed > 0);
+    assert_eq!(b.report.distances_computed, 0, "the second solve reads the cache");
+    assert_eq!(a.mesh, b.mesh);
+    assert_eq!(a.voxel_labels, b.voxel_labels);
+    let c = retarget(&ex.mesh, &pitch, [1, 1, 0], &RetargetOptions::default(), &NoProgress).unwrap();
+    assert_eq!(a.mesh, c.mesh);
+    assert_eq!(a.report.energy, c.report.energy);
+    // Zero steps reproduce the input exactly.
+    let same = s.retarget([0, 0, 0], &NoProgress).unwrap();
+    assert_eq!(same.report.labels, 1);
+    assert!(two_sided_distance(&same.mesh, &ex.mesh, 0.01) < 1e-12);
+    assert_eq!(same.mesh.triangles.len(), ex.mesh.triangles.len());
+}
+
+#[test]
+fn rigid_motion_of_the_input_moves_the_output() {
+    let ex = generate("shelf", 0).unwrap();
+    let pitch = ex.structure.cell_pitch.clone();
+    let base = run(&ex.mesh, &pitch, [1, 1, 0], RetargetMethod::Offsets);
+    let r = motif_core::geometry::rotation_about_axis([0.3, 1.0, 0.2], 0.7);
+    let m = motif_core::geometry::mat4_from_rt(r, [3.0, -2.0, 0.5]);
+    let mut moved = ex.mesh.clone();
+    moved.transform(&m);
+    let rot = |v: Point3| motif_core::geometry::transform_vector(&m, v);
+    let moved_pitch: Vec<Point3> = pitch.iter().map(|v| rot(*v)).collect();
+    let out = run(&moved, &moved_pitch, [1, 1, 0], RetargetMethod::Offsets);
+    let mut expected = base.mesh.clone();
+    expected.transform(&m);
+    let d = two_sided_distance(&out.mesh, &expected, 0.01);
+    eprintln!("rotated shelf +1,+1: distance to the rotated result {d:.2e}");
+    assert!(d < 1e-6, "{d}");
+    assert_eq!(shelf_parts(&out.mesh, &moved_pitch), shelf_expected(5, 4));
+}
