@@ -10,7 +10,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let name = args.first().map_or("shelf", String::as_str);
     let step = |i: usize| args.get(i).and_then(|s| s.parse::<i32>().ok()).unwrap_or(0);
     let steps = [step(1), step(2), step(3)];
-    let method = if args.get(4).is_some_and(|m| m == "dense") { RetargetMethod::Dense } else { RetargetMethod::Offsets };
+    let method = if args.get(4).is_some_and(|m| m == "dense") {
+        RetargetMethod::Dense
+    } else {
+        RetargetMethod::Offsets
+    };
     let ex = generate(name, 0)?;
     let options = RetargetOptions { method, ..Default::default() };
     let out = retarget(&ex.mesh, &ex.structure.cell_pitch, steps, &options, &NoProgress)?;
@@ -36,5 +40,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         RetargetMethod::Dense => "dense",
     };
     motif_core::io::write_mesh(&dir.join(format!("retarget-{name}-{tag}.obj")), &out.mesh)?;
+    // One line per output triangle: the step vector of the voxel it was copied into.
+    let labels: String = out
+        .triangle_voxels
+        .iter()
+        .map(|&v| {
+            let k = out.voxel_labels[v as usize];
+            format!("{} {} {}\n", k[0], k[1], k[2])
+        })
+        .collect();
+    std::fs::write(dir.join(format!("retarget-{name}-{tag}.labels")), labels)?;
     Ok(())
 }

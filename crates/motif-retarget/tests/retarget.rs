@@ -65,7 +65,8 @@ impl SurfaceDistance {
         let mut bins: HashMap<[i64; 3], Vec<u32>> = HashMap::new();
         let key = |x: f64| (x / bin).floor() as i64;
         for (f, t) in tris.iter().enumerate() {
-            let lo: [i64; 3] = std::array::from_fn(|a| key(t.iter().map(|p| p[a]).fold(f64::INFINITY, f64::min) - cap));
+            let lo: [i64; 3] =
+                std::array::from_fn(|a| key(t.iter().map(|p| p[a]).fold(f64::INFINITY, f64::min) - cap));
             let hi: [i64; 3] =
                 std::array::from_fn(|a| key(t.iter().map(|p| p[a]).fold(f64::NEG_INFINITY, f64::max) + cap));
             for x in lo[0]..=hi[0] {
@@ -145,11 +146,8 @@ impl CellGrid {
         }
         let (a, b, c) = (v[0], v[1], v[2]);
         let det = dot(a, cross(b, c));
-        let inv = [
-            scale(cross(b, c), 1.0 / det),
-            scale(cross(c, a), 1.0 / det),
-            scale(cross(a, b), 1.0 / det),
-        ];
+        let inv =
+            [scale(cross(b, c), 1.0 / det), scale(cross(c, a), 1.0 / det), scale(cross(a, b), 1.0 / det)];
         let coords = |p: Point3| [dot(inv[0], p), dot(inv[1], p), dot(inv[2], p)];
         let mut lo = [f64::INFINITY; 3];
         let mut hi = [f64::NEG_INFINITY; 3];
@@ -223,7 +221,11 @@ fn check_cells(input: &TriMesh, output: &TriMesh, pitch: &[Point3], tol: f64) ->
     let empty = Vec::new();
     let mut report = CellReport { cells: gout.len(), broken: 0, worst_intact: 0.0, matches: HashMap::new() };
     for x in 0..gout.len() {
-        let xc = [x % gout.counts[0], (x / gout.counts[0]) % gout.counts[1], x / (gout.counts[0] * gout.counts[1])];
+        let xc = [
+            x % gout.counts[0],
+            (x / gout.counts[0]) % gout.counts[1],
+            x / (gout.counts[0] * gout.counts[1]),
+        ];
         let cand: Vec<Vec<usize>> = (0..3)
             .map(|k| {
                 let (n_in, n_out) = (gin.counts[k], gout.counts[k]);
@@ -245,8 +247,18 @@ fn check_cells(input: &TriMesh, output: &TriMesh, pitch: &[Point3], tol: f64) ->
                     let y = [i, j, k];
                     let d = [0, 1, 2].map(|a| y[a] as i64 - xc[a] as i64);
                     let t = gin.shift(d);
-                    let r1 = pout.get(&xc).unwrap_or(&empty).iter().map(|p| din.distance(add(*p, t))).fold(0.0, f64::max);
-                    let r2 = pin.get(&y).unwrap_or(&empty).iter().map(|p| dout.distance(sub(*p, t))).fold(0.0, f64::max);
+                    let r1 = pout
+                        .get(&xc)
+                        .unwrap_or(&empty)
+                        .iter()
+                        .map(|p| din.distance(add(*p, t)))
+                        .fold(0.0, f64::max);
+                    let r2 = pin
+                        .get(&y)
+                        .unwrap_or(&empty)
+                        .iter()
+                        .map(|p| dout.distance(sub(*p, t)))
+                        .fold(0.0, f64::max);
                     let r = r1.max(r2);
                     if r < best.0 {
                         best = (r, y);
@@ -325,7 +337,11 @@ fn shelf_grows_by_one_column_and_one_row() {
         "shelf +1,+1: {} nodes, {} labels, {} edges, energy {:.3}, {} cycles, graph cut {:.2} ms, total {:.0} ms",
         r.nodes, r.labels, r.edges, r.energy, r.cycles, r.graph_cut_ms, r.total_ms
     );
-    assert_eq!(r.input_voxels, [5, 4, 2], "4×3 cells plus the closing column and top row; 2 dummy voxels deep");
+    assert_eq!(
+        r.input_voxels,
+        [5, 4, 2],
+        "4×3 cells plus the closing column and top row; 2 dummy voxels deep"
+    );
     assert_eq!(r.output_voxels, [6, 5, 2]);
     assert_eq!((r.nodes, r.labels), (60, 4));
     assert!(r.energy.is_finite());
@@ -373,7 +389,9 @@ fn shelf_shrinks_by_one_column_and_one_row() {
 fn shelf_grows_by_two_and_shrinks_one_direction() {
     let ex = generate("shelf", 0).unwrap();
     let pitch = ex.structure.cell_pitch.clone();
-    for (steps, cells) in [([2, 0, 0], [6, 3]), ([0, 2, 0], [4, 5]), ([2, -2, 0], [6, 1]), ([-3, 1, 0], [1, 4])] {
+    for (steps, cells) in
+        [([2, 0, 0], [6, 3]), ([0, 2, 0], [4, 5]), ([2, -2, 0], [6, 1]), ([-3, 1, 0], [1, 4])]
+    {
         let out = run(&ex.mesh, &pitch, steps, RetargetMethod::Offsets);
         assert_eq!(shelf_parts(&out.mesh, &pitch), shelf_expected(cells[0], cells[1]), "{steps:?}");
         let reference = shelf(&ShelfOptions { cells, ..Default::default() }).unwrap().mesh;
@@ -448,7 +466,14 @@ fn facade_grows_by_one_bay_and_one_floor_with_intact_cells() {
     let doors = cells.matches.values().filter(|c| **c == [2, 0, 0]).count();
     eprintln!(
         "facade +1,+1: {} nodes, {} labels, energy {:.3}, {} cells / {} broken (worst {:.1e} m), {} door(s), boundary edges {}",
-        r.nodes, r.labels, r.energy, cells.cells, cells.broken, cells.worst_intact, doors, r.output_boundary_edges
+        r.nodes,
+        r.labels,
+        r.energy,
+        cells.cells,
+        cells.broken,
+        cells.worst_intact,
+        doors,
+        r.output_boundary_edges
     );
     assert_eq!(cells.cells, 30);
     assert_eq!(cells.broken, 0);
@@ -469,11 +494,19 @@ fn dense_baseline_runs_and_breaks_cells() {
     let ex = generate("shelf", 0).unwrap();
     let pitch = ex.structure.cell_pitch.clone();
     let offsets = run(&ex.mesh, &pitch, [1, 1, 0], RetargetMethod::Offsets);
-    let dense = retarget_dense(&ex.mesh, &pitch, [1, 1, 0], &RetargetOptions::default(), &NoProgress).unwrap();
+    let dense =
+        retarget_dense(&ex.mesh, &pitch, [1, 1, 0], &RetargetOptions::default(), &NoProgress).unwrap();
     let (o, d) = (&offsets.report, &dense.report);
     assert_eq!(d.method, RetargetMethod::Dense);
     assert_eq!(d.pitch, [0.1; 3]);
-    assert!(d.nodes > 10 * o.nodes && d.labels > 5 * o.labels, "{} / {} nodes, {} / {} labels", d.nodes, o.nodes, d.labels, o.labels);
+    assert!(
+        d.nodes > 10 * o.nodes && d.labels > 5 * o.labels,
+        "{} / {} nodes, {} / {} labels",
+        d.nodes,
+        o.nodes,
+        d.labels,
+        o.labels
+    );
     let tol = 0.01 * min_pitch(&pitch);
     let cells_o = check_cells(&ex.mesh, &offsets.mesh, &pitch, tol);
     let cells_d = check_cells(&ex.mesh, &dense.mesh, &pitch, tol);
@@ -483,7 +516,14 @@ fn dense_baseline_runs_and_breaks_cells() {
     );
     eprintln!(
         "shelf +1,+1 dense (0.1): {} nodes, {} labels, grid steps {:?}, graph cut {:.2} ms, total {:.0} ms, {} of {} cells broken, {} boundary edges",
-        d.nodes, d.labels, d.grid_steps, d.graph_cut_ms, d.total_ms, cells_d.broken, cells_d.cells, d.output_boundary_edges
+        d.nodes,
+        d.labels,
+        d.grid_steps,
+        d.graph_cut_ms,
+        d.total_ms,
+        cells_d.broken,
+        cells_d.cells,
+        d.output_boundary_edges
     );
     assert_eq!(cells_o.broken, 0);
     assert!(!dense.mesh.triangles.is_empty());
@@ -504,11 +544,17 @@ fn errors_are_reported() {
     let e = err(retarget(&ex.mesh, &pitch, [-4, 0, 0], &o, &NoProgress));
     assert!(matches!(e, RetargetError::ShrinkBelowOneCell { direction: 0, minimum: 2, .. }), "{e}");
     assert!(e.to_string().contains("steps >= -3"), "{e}");
-    assert!(matches!(err(retarget(&ex.mesh, &pitch, [0, -9, 0], &o, &NoProgress)), RetargetError::ShrinkBelowOneCell { .. }));
+    assert!(matches!(
+        err(retarget(&ex.mesh, &pitch, [0, -9, 0], &o, &NoProgress)),
+        RetargetError::ShrinkBelowOneCell { .. }
+    ));
     // Without end preservation one voxel may remain, not zero.
     let free = RetargetOptions { boundary: BoundaryMode::Free, ..Default::default() };
     assert!(retarget(&ex.mesh, &pitch, [-4, 0, 0], &free, &NoProgress).is_ok());
-    assert!(matches!(err(retarget(&ex.mesh, &pitch, [-5, 0, 0], &free, &NoProgress)), RetargetError::ShrinkBelowOneCell { .. }));
+    assert!(matches!(
+        err(retarget(&ex.mesh, &pitch, [-5, 0, 0], &free, &NoProgress)),
+        RetargetError::ShrinkBelowOneCell { .. }
+    ));
 
     let e = err(retarget(&ex.mesh, &pitch, [0, 0, 1], &o, &NoProgress));
     assert!(matches!(e, RetargetError::StepsAlongDummy { direction: 2, .. }), "{e}");
@@ -516,7 +562,13 @@ fn errors_are_reported() {
     let e = err(retarget(&ex.mesh, &pitch, [100_000, 100_000, 0], &o, &NoProgress));
     assert!(matches!(e, RetargetError::TooLarge { unit: "voxels", .. }), "{e}");
     assert!(e.to_string().contains("force"), "{e}");
-    let e = err(retarget(&ex.mesh, &pitch, [i32::MAX, i32::MAX, 0], &RetargetOptions { force: true, ..o.clone() }, &NoProgress));
+    let e = err(retarget(
+        &ex.mesh,
+        &pitch,
+        [i32::MAX, i32::MAX, 0],
+        &RetargetOptions { force: true, ..o.clone() },
+        &NoProgress,
+    ));
     assert!(matches!(e, RetargetError::TooLarge { .. }), "{e}");
     let e = err(retarget(&ex.mesh, &[[1e-9, 0.0, 0.0]], [1, 0, 0], &o, &NoProgress));
     assert!(matches!(e, RetargetError::InvalidOffsets { .. }), "{e}");
@@ -533,7 +585,13 @@ fn errors_are_reported() {
         let e = err(retarget(&ex.mesh, &bad, [0, 0, 0], &o, &NoProgress));
         assert!(matches!(e, RetargetError::InvalidOffsets { .. }), "{bad:?}: {e}");
     }
-    let e = err(retarget(&ex.mesh, &pitch, [1, 0, 0], &RetargetOptions { sample_spacing: 0.0, ..o.clone() }, &NoProgress));
+    let e = err(retarget(
+        &ex.mesh,
+        &pitch,
+        [1, 0, 0],
+        &RetargetOptions { sample_spacing: 0.0, ..o.clone() },
+        &NoProgress,
+    ));
     assert!(matches!(e, RetargetError::InvalidOption { name: "sample_spacing", .. }), "{e}");
 }
 

@@ -52,12 +52,7 @@ impl Normalization {
     pub fn matrix(&self) -> Mat4 {
         let s = self.scale;
         let c = self.center;
-        [
-            [s, 0.0, 0.0, -s * c[0]],
-            [0.0, s, 0.0, -s * c[1]],
-            [0.0, 0.0, s, -s * c[2]],
-            [0.0, 0.0, 0.0, 1.0],
-        ]
+        [[s, 0.0, 0.0, -s * c[0]], [0.0, s, 0.0, -s * c[1]], [0.0, 0.0, s, -s * c[2]], [0.0, 0.0, 0.0, 1.0]]
     }
 }
 
@@ -234,7 +229,7 @@ pub fn mul3(m: &Mat3, v: Point3) -> Point3 {
 pub fn invert3(m: &Mat3) -> Option<Mat3> {
     let c0 = cross(m[1], m[2]);
     let det = dot(m[0], c0);
-    if !(det.abs() > 1e-12) {
+    if det.is_nan() || det.abs() <= 1e-12 {
         return None;
     }
     let c1 = cross(m[2], m[0]);
@@ -295,7 +290,8 @@ mod tests {
 
     #[test]
     fn normalisation_maps_the_largest_dimension_to_minus_one_one() {
-        let m = TriMesh::new(vec![[1.0, 2.0, 3.0], [5.0, 3.0, 3.5], [2.0, 2.5, 4.0]], vec![[0, 1, 2]]).unwrap();
+        let m =
+            TriMesh::new(vec![[1.0, 2.0, 3.0], [5.0, 3.0, 3.5], [2.0, 2.5, 4.0]], vec![[0, 1, 2]]).unwrap();
         let n = Normalization::of_mesh(&m).unwrap();
         assert!((n.apply([1.0, 2.0, 3.0])[0] + 1.0).abs() < 1e-12);
         assert!((n.apply([5.0, 2.0, 3.0])[0] - 1.0).abs() < 1e-12);

@@ -30,12 +30,14 @@
 //! All edges have weight 1.
 //!
 //! **Start.** Alpha-expansion needs a labelling of finite unary cost. The identity is infeasible
-//! when growing (new voxels have nothing to copy); we start per direction from the labelling that
-//! repeats (growing) or drops (shrinking) voxels in the middle of the model: `kᵢ(x) = clamp(x − c,
-//! 0, stepsᵢ)` with `c` the middle input voxel when growing, and `kᵢ = 0` below / `stepsᵢ` from the
-//! middle output voxel on when shrinking. Unlike "the smallest shift that copies from inside"
-//! (which repeats the last voxel, usually a distinct end), this start has finite pairwise energy
-//! on regular models; the solve then moves the seams wherever they cost least.
+//! when growing (new voxels have nothing to copy); we start, per direction, from a single seam in
+//! the middle of the model: `kᵢ(x) = 0` below a middle voxel `c` and `stepsᵢ` from `c` on, with
+//! `c` the middle of `[stepsᵢ, U_in]` when growing (so both sides copy from inside) and the middle
+//! output voxel when shrinking. When a direction grows by more voxels than the input has, the
+//! middle input voxel is repeated instead (`kᵢ(x) = clamp(x − c, 0, stepsᵢ)`). Unlike "the
+//! smallest shift that copies from inside" (which repeats the last voxel, usually a distinct
+//! end), this start has finite pairwise energy on regular models and a single seam per direction,
+//! so few expansion moves remain; the solve then moves the seams wherever they cost least.
 
 use std::collections::HashMap;
 
@@ -283,39 +285,60 @@ pub(crate) fn solve(
             true
         })
     };
+    // The callbacks are evaluated four times per edge and move: precompute the source voxel of
+    // every (site, label) (`NONE` outside the input) and the difference index of every label
+    // pair, so that a term is three lookups.
+    const NONE: u32 = u32::MAX;
+    let num_labels = labels.len();
+    let source: Vec<u32> = (0..out.len())
+        .flat_map(|p| {
+            let c = coords[p];
+            labels.labels.iter().map(move |k| {
+                let s = [c[0] - k[0] as i64, c[1] - k[1] as i64, c[2] - k[2] as i64];
+                grid_in.linear_checked(s).map_or(NONE, |i| i as u32)
+            })
+        })
+        .collect();
+    let unary: Vec<f64> = (0..out.len())
+        .flat_map(|p| (0..num_labels).map(move |l| (p, l)))
+        .map(|(p, l)| if valid(p, l) { 0.0 } else { f64::INFINITY })
+        .collect();
+    let diff_index: Vec<u32> = labels
+        .labels
+        .iter()
+        .flat_map(|kp| {
+            labels
+                .labels
+                .iter()
+                .map(|kq| table.diff_index([kp[0] - kq[0], kp[1] - kq[1], kp[2] - kq[2]]) as u32)
+        })
+        .collect();
     let occ = &descriptors.occupied;
-    let term = |x: usize, kp: [i32; 3], kq: [i32; 3]| -> f64 {
-        let c = coords[x];
-        let s = [c[0] - kp[0] as i64, c[1] - kp[1] as i64, c[2] - kp[2] as i64];
-        let d = [kp[0] - kq[0], kp[1] - kq[1], kp[2] - kq[2]];
-        match grid_in.linear_checked(s) {
-            Some(si) => table.values[si * table.per_voxel + table.diff_index(d)],
-            None => {
-                let t = [s[0] + d[0] as i64, s[1] + d[1] as i64, s[2] + d[2] as i64];
-                match grid_in.linear_checked(t) {
-                    Some(ti) if occ[ti] => f64::INFINITY,
-                    _ => 0.0,
-                }
+    // d(G(x − k_lp), G(x − k_lq)) at output voxel x.
+    let term = |x: usize, lp: usize, lq: usize| -> f64 {
+        let s = source[x * num_labels + lp];
+        if s != NONE {
+            table.values[s as usize * table.per_voxel + diff_index[lp * num_labels + lq] as usize]
+        } else {
+            // Outside the input: empty.
+            match source[x * num_labels + lq] {
+                NONE => 0.0,
+                t if occ[t as usize] => f64::INFINITY,
+                _ => 0.0,
             }
         }
     };
     let energy = MrfEnergy::new(
         out.len(),
-        labels.len(),
+        num_labels,
         &edges,
-        |p, l| if valid(p, l) { 0.0 } else { f64::INFINITY },
-        |p, q, lp, lq| {
-            if lp == lq {
-                0.0
-            } else {
-                let (kp, kq) = (labels.labels[lp], labels.labels[lq]);
-                term(p, kp, kq) + term(q, kp, kq)
-            }
-        },
+        |p, l| unary[p * num_labels + l],
+        |p, q, lp, lq| if lp == lq { 0.0 } else { term(p, lp, lq) + term(q, lp, lq) },
     );
     let init = initial_labels(grid_in.dims, out_dims, steps, &labels);
     let result = AlphaExpansion::new().solve(&energy, &init, options)?;
-    let seams = edges.iter().filter(|[p, q]| result.labels[*p as usize] != result.labels[*q as usize]).count();
+    let seams =
+        edges.iter().filter(|[p, q]| result.labels[*p as usize] != result.labels[*q as usize]).count();
     let mut used = vec![false; labels.len()];
     for &l in &result.labels {
         used[l as usize] = true;
@@ -332,14 +355,26 @@ pub(crate) fn solve(
 }
 
 /// The feasible start described in the module docs.
-fn initial_labels(in_dims: [usize; 3], out_dims: [usize; 3], steps: [i32; 3], labels: &LabelSpace) -> Vec<u32> {
+fn initial_labels(
+    in_dims: [usize; 3],
+    out_dims: [usize; 3],
+    steps: [i32; 3],
+    labels: &LabelSpace,
+) -> Vec<u32> {
     let per_axis: [Vec<i32>; 3] = std::array::from_fn(|a| {
         let s = steps[a] as i64;
         let n_out = out_dims[a] as i64;
         (0..n_out)
             .map(|x| {
-                let k = if s > 0 {
-                    let c = (in_dims[a] as i64 - 1) / 2;
+                let n_in = in_dims[a] as i64;
+                let k = if s > 0 && s <= n_in {
+                    // One jump by s at c ∈ [s, n_in]: voxels below c copy themselves, the rest
+                    // copy x − s (valid since x − s ≥ c − s ≥ 0 and c − 1 ≤ n_in − 1).
+                    let c = (s + n_in) / 2;
+                    if x < c { 0 } else { s }
+                } else if s > 0 {
+                    // More new voxels than the input has: repeat the middle voxel.
+                    let c = (n_in - 1) / 2;
                     (x - c).clamp(0, s)
                 } else if s < 0 {
                     let c = (n_out / 2).clamp(1, (n_out - 1).max(1));

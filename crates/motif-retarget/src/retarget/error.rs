@@ -7,7 +7,9 @@
 #[derive(Debug, thiserror::Error)]
 pub enum RetargetError {
     /// The mesh has no triangles (a point cloud or an empty file): there is no geometry to copy.
-    #[error("the mesh has no faces ({vertices} vertices, 0 triangles); retargeting copies triangles, so give it a triangle mesh")]
+    #[error(
+        "the mesh has no faces ({vertices} vertices, 0 triangles); retargeting copies triangles, so give it a triangle mesh"
+    )]
     NoFaces {
         /// Number of vertices of the mesh.
         vertices: usize,

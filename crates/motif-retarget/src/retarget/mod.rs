@@ -488,8 +488,7 @@ impl RetargetSession {
         let stitch_ms = t_stitch.elapsed().as_secs_f64() * 1e3;
         progress.finish();
 
-        let edge_stats = stitched.mesh.edge_stats();
-        let components = stitched.mesh.components().count;
+        let (components, boundary_edges) = stitch::mesh_stats(&stitched.mesh);
         let solve_ms = t0.elapsed().as_secs_f64() * 1e3;
         let r = &solved.result;
         let report = RetargetReport {
@@ -527,7 +526,7 @@ impl RetargetSession {
             output_vertices: stitched.mesh.positions.len(),
             output_triangles: stitched.mesh.triangles.len(),
             output_components: components,
-            output_boundary_edges: edge_stats.boundary,
+            output_boundary_edges: boundary_edges,
             welded_vertices: stitched.welded,
             normalized_from_model: self.lattice.normalization.matrix(),
             canonical_from_normalized: self.lattice.canonical_from_normalized,
@@ -540,7 +539,6 @@ impl RetargetSession {
         })
     }
 }
-
 
 /// Voxels of the input grid per axis, computed without allocating.
 fn input_dims(lattice: &Lattice, mesh: &TriMesh) -> [usize; 3] {

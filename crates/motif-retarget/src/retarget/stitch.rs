@@ -72,7 +72,11 @@ pub(crate) fn stitch(
     }
 
     let out = VoxelGrid { origin: [0.0; 3], pitch: [1.0; 3], dims: out_dims };
-    let mut key_to_vertex: HashMap<(u32, [i32; 3]), u32> = HashMap::new();
+    // Output vertex of (input vertex, label): one table of #V entries per label in use.
+    const UNSET: u32 = u32::MAX;
+    let num_in_vertices = mesh.positions.len();
+    let mut label_slot: HashMap<[i32; 3], usize> = HashMap::new();
+    let mut vertex_of: Vec<Vec<u32>> = Vec::new();
     let mut positions: Vec<Point3> = Vec::new();
     let mut origin_of: Vec<(u32, [i32; 3])> = Vec::new();
     let mut triangles: Vec<[u32; 3]> = Vec::new();
@@ -83,13 +87,20 @@ pub(crate) fn stitch(
         // Labels with infinite unary cost are never chosen; skip defensively.
         let Some(s) = grid_in.linear_checked(src) else { continue };
         let t = lattice.translation(k);
+        let slot = *label_slot.entry(k).or_insert_with(|| {
+            vertex_of.push(vec![UNSET; num_in_vertices]);
+            vertex_of.len() - 1
+        });
+        let table = &mut vertex_of[slot];
         for &f in &by_voxel[start[s] as usize..start[s + 1] as usize] {
             let tri = mesh.triangles[f as usize].map(|v| {
-                *key_to_vertex.entry((v, k)).or_insert_with(|| {
+                let e = &mut table[v as usize];
+                if *e == UNSET {
                     positions.push(add(mesh.positions[v as usize], t));
                     origin_of.push((v, k));
-                    (positions.len() - 1) as u32
-                })
+                    *e = (positions.len() - 1) as u32;
+                }
+                *e
             });
             triangles.push(tri);
             triangle_voxels.push(x as u32);
@@ -161,5 +172,67 @@ pub(crate) fn stitch(
             kept_voxels.push(x);
         }
     }
-    Stitched { mesh: TriMesh { positions: new_positions, triangles: kept }, triangle_voxels: kept_voxels, welded }
+    Stitched {
+        mesh: TriMesh { positions: new_positions, triangles: kept },
+        triangle_voxels: kept_voxels,
+        welded,
+    }
+}
+
+/// Connected components (through shared vertices, counting only components with triangles) and
+/// boundary edges (used by one triangle) of a mesh. Sort-based, several times faster than
+/// [`TriMesh::edge_stats`] and [`TriMesh::components`], which hash every edge; this runs on every
+/// interactive solve.
+pub(crate) fn mesh_stats(mesh: &TriMesh) -> (usize, usize) {
+    let mut keys: Vec<u64> = Vec::with_capacity(3 * mesh.triangles.len());
+    let mut uf = UnionFind::new(mesh.positions.len());
+    for t in &mesh.triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            if a != b {
+                keys.push(((a.min(b) as u64) << 32) | a.max(b) as u64);
+            }
+        }
+        uf.union(t[0] as usize, t[1] as usize);
+        uf.union(t[0] as usize, t[2] as usize);
+    }
+    keys.sort_unstable();
+    let mut boundary = 0;
+    let mut i = 0;
+    while i < keys.len() {
+        let mut j = i + 1;
+        while j < keys.len() && keys[j] == keys[i] {
+            j += 1;
+        }
+        if j - i == 1 {
+            boundary += 1;
+        }
+        i = j;
+    }
+    let mut seen = vec![false; mesh.positions.len()];
+    let mut components = 0;
+    for t in &mesh.triangles {
+        let r = uf.find(t[0] as usize);
+        if !seen[r] {
+            seen[r] = true;
+            components += 1;
+        }
+    }
+    (components, boundary)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stats_agree_with_the_mesh_methods() {
+        let m = motif_core::procedural::generate("fence", 0).unwrap().mesh;
+        let (c, b) = mesh_stats(&m);
+        assert_eq!(c, m.components().count);
+        assert_eq!(b, m.edge_stats().boundary);
+        let mut open = m.clone();
+        open.triangles.truncate(open.triangles.len() - 1);
+        assert_eq!(mesh_stats(&open).1, open.edge_stats().boundary);
+    }
 }
