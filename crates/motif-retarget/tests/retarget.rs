@@ -202,9 +202,10 @@ struct CellReport {
 /// output cell lies within `tol` of the input shifted onto it and vice versa.
 fn check_cells(input: &TriMesh, output: &TriMesh, pitch: &[Point3], tol: f64) -> CellReport {
     let gin = CellGrid::new(input, pitch);
-    let gout = CellGrid::new(output, pitch);
-    // The output grid must start where the input's does (the low ends are kept).
-    assert!(norm(sub(gin.origin, gout.origin)) < tol, "output lattice origin moved");
+    // The output's cells are where the input's lattice puts them: the low ends are kept, so an
+    // output whose lattice corner moved has broken cells.
+    let mut gout = CellGrid::new(output, pitch);
+    gout.origin = gin.origin;
     let cap = 4.0 * tol;
     let bin = pitch.iter().map(|v| norm(*v)).fold(f64::INFINITY, f64::min) / 6.0;
     let (din, dout) = (SurfaceDistance::new(input, cap, bin), SurfaceDistance::new(output, cap, bin));
@@ -491,42 +492,56 @@ fn facade_grows_by_one_bay_and_one_floor_with_intact_cells() {
 
 #[test]
 fn dense_baseline_runs_and_breaks_cells() {
-    let ex = generate("shelf", 0).unwrap();
-    let pitch = ex.structure.cell_pitch.clone();
-    let offsets = run(&ex.mesh, &pitch, [1, 1, 0], RetargetMethod::Offsets);
-    let dense =
-        retarget_dense(&ex.mesh, &pitch, [1, 1, 0], &RetargetOptions::default(), &NoProgress).unwrap();
-    let (o, d) = (&offsets.report, &dense.report);
-    assert_eq!(d.method, RetargetMethod::Dense);
-    assert_eq!(d.pitch, [0.1; 3]);
-    assert!(
-        d.nodes > 10 * o.nodes && d.labels > 5 * o.labels,
-        "{} / {} nodes, {} / {} labels",
-        d.nodes,
-        o.nodes,
-        d.labels,
-        o.labels
-    );
-    let tol = 0.01 * min_pitch(&pitch);
-    let cells_o = check_cells(&ex.mesh, &offsets.mesh, &pitch, tol);
-    let cells_d = check_cells(&ex.mesh, &dense.mesh, &pitch, tol);
-    eprintln!(
-        "shelf +1,+1 with offsets: {} nodes, {} labels, graph cut {:.2} ms, total {:.0} ms, {} of {} cells broken",
-        o.nodes, o.labels, o.graph_cut_ms, o.total_ms, cells_o.broken, cells_o.cells
-    );
-    eprintln!(
-        "shelf +1,+1 dense (0.1): {} nodes, {} labels, grid steps {:?}, graph cut {:.2} ms, total {:.0} ms, {} of {} cells broken, {} boundary edges",
-        d.nodes,
-        d.labels,
-        d.grid_steps,
-        d.graph_cut_ms,
-        d.total_ms,
-        cells_d.broken,
-        cells_d.cells,
-        d.output_boundary_edges
-    );
-    assert_eq!(cells_o.broken, 0);
-    assert!(!dense.mesh.triangles.is_empty());
+    // (example, steps, expected cell regions of the output: cells plus closing column/row)
+    for (name, steps, expected) in [
+        ("shelf", [1, 1, 0], 30),
+        ("shelf_sheared", [1, 1, 0], 30),
+        ("fence", [2, 0, 0], 10),
+        ("facade", [1, 1, 0], 30),
+    ] {
+        let ex = generate(name, 0).unwrap();
+        let pitch = ex.structure.cell_pitch.clone();
+        let offsets = run(&ex.mesh, &pitch, steps, RetargetMethod::Offsets);
+        let dense =
+            retarget_dense(&ex.mesh, &pitch, steps, &RetargetOptions::default(), &NoProgress).unwrap();
+        let (o, d) = (&offsets.report, &dense.report);
+        assert_eq!(d.method, RetargetMethod::Dense);
+        assert_eq!(d.pitch, [0.1; 3]);
+        assert!(
+            d.nodes > 2 * o.nodes && d.labels > o.labels,
+            "{name}: {} / {} nodes, {} / {} labels",
+            d.nodes,
+            o.nodes,
+            d.labels,
+            o.labels
+        );
+        assert!(!dense.mesh.triangles.is_empty());
+        let tol = 0.01 * min_pitch(&pitch);
+        let cells_o = check_cells(&ex.mesh, &offsets.mesh, &pitch, tol);
+        let cells_d = check_cells(&ex.mesh, &dense.mesh, &pitch, tol);
+        eprintln!(
+            "{name} {steps:?} offsets: {:>5} nodes, {:>3} labels, graph cut {:>8.2} ms, total {:>5.0} ms; {} cell regions (expected {expected}), {} broken, {} boundary edges",
+            o.nodes,
+            o.labels,
+            o.graph_cut_ms,
+            o.total_ms,
+            cells_o.cells,
+            cells_o.broken,
+            o.output_boundary_edges
+        );
+        eprintln!(
+            "{name} {steps:?} dense:   {:>5} nodes, {:>3} labels, graph cut {:>8.2} ms, total {:>5.0} ms; {} cell regions (expected {expected}), {} broken, {} boundary edges, energy {:.2}",
+            d.nodes,
+            d.labels,
+            d.graph_cut_ms,
+            d.total_ms,
+            cells_d.cells,
+            cells_d.broken,
+            d.output_boundary_edges,
+            d.energy
+        );
+        assert_eq!((cells_o.cells, cells_o.broken), (expected, 0), "{name}");
+    }
 }
 
 // ---------------------------------------------------------------------------------------------

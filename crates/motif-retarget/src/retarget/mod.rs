@@ -2,23 +2,60 @@
 //! cut (thesis 4.2.2, 4.4), and the dense-MRF baseline (thesis 4.5).
 //!
 //! Given the principal offsets `v₁…v_K` of a model's repetition (K ≤ 3, model units; found by the
-//! offset detection of 4.2.1 or known) and a number of steps per offset, the model is resized
+//! offset detection of 4.2.1, or known) and a number of steps per offset, the model is resized
 //! along its own lattice:
-//! 1. **Normalise** so the largest dimension spans [−1, 1], and map to the **canonical space**
-//!    where the offsets are the coordinate axes (Fig. 4.7; [`canonical`](self) docs). Missing
-//!    offsets are completed by dummy directions of length 0.2.
-//! 2. **Voxelise** with cells equal to the offsets, origin at the canonical bounding box's
-//!    minimum corner. The input grid has `U_in × V_in × W_in` voxels; the output grid (the
-//!    retargeting space Ω) has `(U_in + U) × (V_in + V) × (W_in + W)`.
-//! 3. **Describe** every input voxel by the set of SHOT descriptors (world frame, radius 0.2) of
-//!    the features on its triangles.
-//! 4. **Label** every output voxel with a step vector `k` (it copies input voxel `x − k`) by
-//!    minimising eq. 4.3 with alpha-expansion: unary validity, pairwise Hausdorff distances of
-//!    eq. 4.4 over the 26-neighbourhood (see `energy.rs` for the exact reading of the thesis).
-//! 5. **Stitch** the copies' triangles and weld seams; the result is in model units.
+//! 1. **Normalise** so that the largest dimension spans [−1, 1] (the thesis's lengths 0.02, 0.06,
+//!    0.1, 0.2 are in these units) and map to the **canonical space** `B⁻¹ x`, `B = [v₁/|v₁|
+//!    v₂/|v₂| v₃/|v₃|]`, where the offsets are the coordinate axes (4.4, Fig. 4.7). Fewer than three
+//!    offsets are completed by orthogonal dummy directions of length 0.2 (4.4).
+//! 2. **Voxelise** with cells equal to the offsets, origin at the minimum corner of the canonical
+//!    bounding box: `U_in × V_in × W_in` input voxels; the retargeting space Ω has
+//!    `(U_in + U) × (V_in + V) × (W_in + W)` voxels, the graph's nodes.
+//! 3. **Describe** every input voxel by G(x), the set of SHOT descriptors (world frame, radius
+//!    0.2) of the features on its triangles (features: Poisson-disc spacing 0.06 over a dense cloud
+//!    of spacing 0.02 that supports the descriptors, as in 4.3).
+//! 4. **Label** every voxel of Ω with a step vector `k` — it copies input voxel `x − k`, shifted
+//!    by `Σ kᵢ vᵢ` — by minimising eq. 4.3 with alpha-expansion ([`mod@crate::alpha_expansion`]).
+//! 5. **Stitch** the copies' triangles and weld the seams; the result is in model units.
 //!
-//! [`RetargetSession`] precomputes steps 1–3 once and solves for any number of step vectors
-//! (interactive resizing); [`retarget`] and [`retarget_dense`] are the one-shot forms.
+//! [`RetargetSession`] does steps 1–3 once and solves for any number of step vectors
+//! (interactive resizing; Hausdorff distances are cached across solves); [`retarget`] and
+//! [`retarget_dense`] are the one-shot forms. Everything is deterministic for a seed.
+//!
+//! # How the thesis is read
+//! Where the text leaves a choice, this is what the code does (and why):
+//! - **Labels** (eq. 4.2): `kᵢ ∈ [0, Uᵢ]` (`[Uᵢ, 0]` when shrinking), so M = (|U|+1)(|V|+1)(|W|+1)
+//!   labels: the copies that can reach the added cells. This matches Fig. 4.8's counts (3 labels
+//!   for +2 in one direction, 9 for +2,+2); the text's "M = U × V × W" would be 0 for a direction
+//!   that is not resized.
+//! - **Unary** (4.2.2): 0 when `x − k` is an input voxel, +∞ otherwise. Growing, this already
+//!   pins the ends (the first output voxel along a direction can only copy the first input voxel,
+//!   the last only the last). Shrinking, it does not: every constant labelling is a zero-energy
+//!   crop. [`BoundaryMode::Preserve`] (default) therefore also requires the low (high) face of Ω
+//!   along a resized direction to copy the input's low (high) face — our addition.
+//! - **Pairwise** (eq. 4.4): the thesis writes `G(x + lᵢ)` but copies from `x − l`; we use `x − l`
+//!   throughout: `E = d_H(G(x − lᵢ), G(x − lⱼ)) + d_H(G(x' − lᵢ), G(x' − lⱼ))` for 26-neighbours
+//!   `x, x'` with `lᵢ ≠ lⱼ` — at each of the two voxels, what the two copies would put there is
+//!   compared (the seam cost of graph-cut textures). d_H is the Hausdorff distance with the L2
+//!   norm between descriptors; 0 when both voxels are empty, +∞ when exactly one is. A voxel
+//!   outside the input grid holds no geometry and counts as empty, which forbids seams where one
+//!   copy ends abruptly and keeps the input's boundary cells on the output's boundary. Unit edge
+//!   weights. The term is a metric in the labels, as alpha-expansion needs.
+//! - **Descriptors**: a feature belongs to the voxel of the triangle it lies on, so G(x) describes
+//!   exactly what a copy of x carries; the descriptors' support (radius 0.2) reaches beyond the
+//!   voxel, as in the thesis where they come from the offset detection. A voxel with triangles but
+//!   no feature gets its dense samples (or triangle centroids) as keypoints, so "empty" always
+//!   means "no triangles". The distances are computed once per voxel pair and cached.
+//! - **Triangles** belong to the voxel containing their centroid; a centroid on a voxel face (a
+//!   board's end face on a cell boundary) is probed 10⁻⁶ cells inwards against the face normal, so
+//!   a face goes with the solid it bounds. Cutting triangles at voxel faces is not implemented.
+//! - **Start labelling**: the identity is infeasible when growing; we start from one seam per
+//!   direction in the middle of the model (feasible, few seams), see `energy.rs`.
+//! - **Seams** are welded where copies of a vertex that was shared across voxel faces meet again
+//!   (within 10⁻⁶ of a cell); parts that merely touch stay separate, as in the input.
+//! - **Dense baseline** (4.5): the same pipeline with regular axis-aligned offsets of 0.1 in
+//!   normalised space and no canonical map; `steps` (along the principal offsets) become
+//!   `round(gₐ / 0.1)` regular steps along each world axis `a`, `g = Σ stepsᵢ vᵢ`.
 //!
 //! ```no_run
 //! use motif_core::procedural::generate;
@@ -26,7 +63,7 @@
 //! use motif_retarget::retarget::{RetargetOptions, retarget};
 //!
 //! let shelf = generate("shelf", 0)?;
-//! // Known cell pitch as principal offsets; one more column and one more row.
+//! // The known cell pitch as principal offsets; one more column and one more row.
 //! let out = retarget(&shelf.mesh, &shelf.structure.cell_pitch, [1, 1, 0], &RetargetOptions::default(), &NoProgress)?;
 //! println!("{} nodes, {} labels, graph cut {:.1} ms", out.report.nodes, out.report.labels, out.report.graph_cut_ms);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
@@ -161,6 +198,16 @@ impl RetargetOptions {
         positive("sample_spacing", self.sample_spacing)?;
         positive("feature_spacing", self.feature_spacing)?;
         positive("shot_radius", self.shot_radius)?;
+        for (name, v) in [("dummy_length", self.dummy_length), ("dense_spacing", self.dense_spacing)] {
+            if v < 1e-4 {
+                return Err(RetargetError::InvalidOption {
+                    name,
+                    message: format!(
+                        "{v} is below 1e-4 of the normalised model; the grid would have billions of voxels"
+                    ),
+                });
+            }
+        }
         if self.sample_spacing < 1e-4 {
             return Err(RetargetError::InvalidOption {
                 name: "sample_spacing",
@@ -331,7 +378,7 @@ impl RetargetSession {
         };
         // Count the input voxels before allocating anything per voxel.
         let dims = input_dims(&lattice, mesh);
-        let count: u128 = dims.iter().map(|&d| d as u128).product();
+        let count: u128 = dims.iter().fold(1u128, |a, &d| a.saturating_mul(d as u128));
         if count > options.max_voxels as u128 && !options.force {
             return Err(RetargetError::TooLarge {
                 what: "input voxel grid",
@@ -447,13 +494,18 @@ impl RetargetSession {
         }
         limit("retargeting space", "voxels", voxels, self.options.max_voxels)?;
         limit("offset space", "labels", labels, self.options.max_labels)?;
-        // Past the limits (or forced), the sizes must still fit the graph's u32 indices.
-        if voxels >= u32::MAX as u128 / 16 || labels >= u32::MAX as u128 {
+        // Past the limits (or forced), the per-(voxel, label) tables must still fit in memory
+        // and the graph's u32 indices: a hard limit that `force` does not lift.
+        let input_voxels = self.grid.len() as u128;
+        let differences: u128 =
+            grid_steps_wide.iter().fold(1u128, |a, s| a.saturating_mul(2 * s.unsigned_abs() as u128 + 1));
+        let table = voxels.saturating_mul(labels).max(input_voxels.saturating_mul(differences));
+        if table > MAX_TABLE_ENTRIES || voxels >= u32::MAX as u128 / 16 {
             return Err(RetargetError::TooLarge {
                 what: "retargeting problem",
-                unit: "voxels x labels",
-                value: voxels.saturating_mul(labels),
-                limit: u32::MAX as u128 / 16,
+                unit: "voxel-label pairs",
+                value: table,
+                limit: MAX_TABLE_ENTRIES,
             });
         }
         let grid_steps = grid_steps_wide.map(|s| s as i32);
@@ -539,6 +591,10 @@ impl RetargetSession {
         })
     }
 }
+
+/// Largest number of (voxel, label) and (input voxel, label difference) table entries a solve may
+/// allocate, whatever `force` says (10⁸: about 1 GB of tables, and hours of graph cuts).
+const MAX_TABLE_ENTRIES: u128 = 100_000_000;
 
 /// Voxels of the input grid per axis, computed without allocating.
 fn input_dims(lattice: &Lattice, mesh: &TriMesh) -> [usize; 3] {
