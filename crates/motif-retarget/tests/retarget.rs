@@ -6,12 +6,12 @@ use std::collections::HashMap;
 
 use motif_core::geometry::{Point3, add, cross, dot, norm, scale, sub};
 use motif_core::mesh::TriMesh;
-use motif_core::procedural::{FenceOptions, ShelfOptions, fence, generate, shelf};
+use motif_core::procedural::{FenceOptions, ShelfOptions, box_mesh, fence, generate, shelf};
 use motif_core::progress::NoProgress;
 use motif_core::sampling::sample_surface;
 use motif_retarget::retarget::{
-    BoundaryMode, RetargetError, RetargetMethod, RetargetOptions, RetargetSession, Retargeted, retarget,
-    retarget_dense,
+    BoundaryMode, RetargetError, RetargetMethod, RetargetOptions, RetargetSession, Retargeted,
+    TriangleAssignment, retarget, retarget_dense,
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -420,6 +420,46 @@ fn sheared_shelf_grows_in_canonical_space() {
     let small = run(&ex.mesh, &pitch, [-1, -1, 0], RetargetMethod::Offsets);
     let reference = shelf(&ShelfOptions { cells: [3, 2], ..ShelfOptions::sheared() }).unwrap().mesh;
     assert!(two_sided_distance(&small.mesh, &reference, 0.01) < 1e-9);
+}
+
+/// The shelf with a back panel made of one box (12 triangles) spanning all cells.
+fn shelf_with_back(cells: [usize; 2]) -> TriMesh {
+    let ex = shelf(&ShelfOptions { cells, ..Default::default() }).unwrap();
+    let bb = ex.mesh.aabb().unwrap();
+    let back = box_mesh([bb.min[0], bb.min[1], -0.01], [bb.max[0], bb.max[1], 0.0], [1, 1, 1]).unwrap();
+    let mut m = ex.mesh;
+    m.append(&back);
+    m
+}
+
+#[test]
+fn cutting_at_voxel_faces_stretches_a_panel_spanning_all_cells() {
+    let pitch = shelf(&ShelfOptions::default()).unwrap().structure.cell_pitch;
+    let input = shelf_with_back([4, 3]);
+    let reference = shelf_with_back([5, 4]);
+    let cut = RetargetOptions { assignment: TriangleAssignment::Cut, ..Default::default() };
+    let out = retarget(&input, &pitch, [1, 1, 0], &cut, &NoProgress).unwrap();
+    let d = two_sided_distance(&out.mesh, &reference, 0.01);
+    eprintln!(
+        "shelf with one-quad back panel, cut at voxel faces: distance to reference {d:.2e}, {} triangles, {} welded, {} boundary edges",
+        out.report.output_triangles, out.report.welded_vertices, out.report.output_boundary_edges
+    );
+    assert!(d < 1e-9, "{d}");
+    assert_eq!(out.report.output_boundary_edges, 0, "the cut panel is welded back together");
+    // The back panel is one component again (plus the shelf's 54 parts).
+    assert_eq!(out.report.output_components, 55);
+
+    // Centroid assignment copies the panel whole: it cannot cover the grown shelf.
+    let whole = run(&input, &pitch, [1, 1, 0], RetargetMethod::Offsets);
+    let d = two_sided_distance(&whole.mesh, &reference, 0.01);
+    eprintln!("the same with centroid assignment: distance to reference {d:.2e}");
+    assert!(d > 0.005, "{d}");
+
+    // On the plain shelf both assignments agree.
+    let ex = generate("shelf", 0).unwrap();
+    let a = retarget(&ex.mesh, &pitch, [1, 1, 0], &cut, &NoProgress).unwrap();
+    let b = run(&ex.mesh, &pitch, [1, 1, 0], RetargetMethod::Offsets);
+    assert!(two_sided_distance(&a.mesh, &b.mesh, 0.01) < 1e-9);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -48,7 +48,8 @@
 //!   means "no triangles". The distances are computed once per voxel pair and cached.
 //! - **Triangles** belong to the voxel containing their centroid; a centroid on a voxel face (a
 //!   board's end face on a cell boundary) is probed 10⁻⁶ cells inwards against the face normal, so
-//!   a face goes with the solid it bounds. Cutting triangles at voxel faces is not implemented.
+//!   a face goes with the solid it bounds. [`TriangleAssignment::Cut`] first cuts triangles at
+//!   the voxel faces, for meshes with triangles spanning several cells.
 //! - **Start labelling**: the identity is infeasible when growing; we start from one seam per
 //!   direction in the middle of the model (feasible, few seams), see `energy.rs`.
 //! - **Seams** are welded where copies of a vertex that was shared across voxel faces meet again
@@ -70,6 +71,7 @@
 //! ```
 
 mod canonical;
+mod cut;
 mod dense;
 mod energy;
 mod error;
@@ -117,6 +119,22 @@ pub enum BoundaryMode {
     Free,
 }
 
+/// How input triangles are distributed over the voxels they are copied with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TriangleAssignment {
+    /// Each triangle goes, whole, with the voxel containing its centroid (faces lying on a voxel
+    /// face go with the solid they bound). Keeps the tessellation; right when the model's parts are
+    /// tessellated within its cells, which is what keeps structure intact when seams run between
+    /// repeated cells.
+    #[default]
+    Centroid,
+    /// Triangles are first cut at the voxel faces (new vertices on the cuts, shared exactly
+    /// between neighbouring triangles), so that a triangle spanning several cells — a back panel
+    /// made of one quad — is stretched with the model instead of copied whole.
+    Cut,
+}
+
 /// Options of [`retarget`] and [`RetargetSession`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -144,6 +162,10 @@ pub struct RetargetOptions {
     pub seed: u64,
     /// Treatment of the model's ends when shrinking; default [`BoundaryMode::Preserve`].
     pub boundary: BoundaryMode,
+    /// How triangles are assigned to voxels (thesis 4.2.2 copies "the source geometry" of a
+    /// voxel without saying how triangles crossing voxel faces are split); default
+    /// [`TriangleAssignment::Centroid`].
+    pub assignment: TriangleAssignment,
     /// Seam welding tolerance, relative to the smallest cell edge (the shortest principal offset,
     /// or the dense spacing); default 10⁻⁶. 0 disables seam welding.
     pub weld_tolerance: f64,
@@ -171,6 +193,7 @@ impl Default for RetargetOptions {
             shot_radius: 0.2,
             seed: 0,
             boundary: BoundaryMode::Preserve,
+            assignment: TriangleAssignment::Centroid,
             weld_tolerance: 1e-6,
             max_voxels: 1_000_000,
             max_labels: 10_000,
@@ -388,7 +411,11 @@ impl RetargetSession {
             });
         }
         let grid = VoxelGrid::covering(&lattice, &mesh.positions);
-        let tri_voxel = voxels::assign_triangles(mesh, &lattice, &grid);
+        let mesh = match options.assignment {
+            TriangleAssignment::Centroid => mesh.clone(),
+            TriangleAssignment::Cut => cut::cut_at_voxel_faces(mesh, &lattice, &grid),
+        };
+        let tri_voxel = voxels::assign_triangles(&mesh, &lattice, &grid);
         progress.finish();
         let voxelize_ms = t0.elapsed().as_secs_f64() * 1e3;
 
@@ -408,7 +435,7 @@ impl RetargetSession {
         let descriptors_ms = t1.elapsed().as_secs_f64() * 1e3 - sampling_ms;
         Ok(RetargetSession {
             options: options.clone(),
-            mesh: mesh.clone(),
+            mesh,
             principal_offsets: principal_offsets.to_vec(),
             lattice,
             grid,

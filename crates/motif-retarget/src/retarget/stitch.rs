@@ -15,7 +15,7 @@
 
 use std::collections::HashMap;
 
-use motif_core::geometry::{Point3, add, dist2};
+use motif_core::geometry::{Point3, add, dist2, dot, scale, sub};
 use motif_core::mesh::{TriMesh, UnionFind};
 
 use super::canonical::Lattice;
@@ -172,10 +172,143 @@ pub(crate) fn stitch(
             kept_voxels.push(x);
         }
     }
-    Stitched {
-        mesh: TriMesh { positions: new_positions, triangles: kept },
-        triangle_voxels: kept_voxels,
-        welded,
+    let mut mesh = TriMesh { positions: new_positions, triangles: kept };
+    let mut triangle_voxels = kept_voxels;
+    if weld_tolerance > 0.0 {
+        split_t_junctions(&mut mesh, &mut triangle_voxels, weld_tolerance);
+    }
+    Stitched { mesh, triangle_voxels, welded }
+}
+
+/// Removes T-junctions along seams: where one copy's boundary edge has another copy's boundary
+/// vertex on it (within `tol`), the triangle is split at that vertex. This happens when the two
+/// sides of a seam were tessellated differently, e.g. pieces of a large triangle cut at voxel
+/// faces ([`super::TriangleAssignment::Cut`]). Iterates until no boundary edge has a vertex on it.
+fn split_t_junctions(mesh: &mut TriMesh, triangle_voxels: &mut Vec<u32>, tol: f64) {
+    for _round in 0..8 {
+        // Boundary edges as (triangle, corner k): the edge from corner k to corner k + 1.
+        let mut keys: Vec<(u64, u32, u8)> = Vec::with_capacity(3 * mesh.triangles.len());
+        for (f, t) in mesh.triangles.iter().enumerate() {
+            for k in 0..3 {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                keys.push((((a.min(b) as u64) << 32) | a.max(b) as u64, f as u32, k as u8));
+            }
+        }
+        keys.sort_unstable();
+        let mut boundary: Vec<(u32, u8)> = Vec::new();
+        let mut i = 0;
+        while i < keys.len() {
+            let mut j = i + 1;
+            while j < keys.len() && keys[j].0 == keys[i].0 {
+                j += 1;
+            }
+            if j - i == 1 {
+                boundary.push((keys[i].1, keys[i].2));
+            }
+            i = j;
+        }
+        if boundary.is_empty() {
+            return;
+        }
+        let edge = |f: u32, k: u8| {
+            let t = mesh.triangles[f as usize];
+            (t[k as usize], t[(k as usize + 1) % 3])
+        };
+        // Boundary vertices, hashed on a grid of the median boundary edge length.
+        let mut lengths: Vec<f64> = boundary
+            .iter()
+            .map(|&(f, k)| {
+                let (a, b) = edge(f, k);
+                dist2(mesh.positions[a as usize], mesh.positions[b as usize]).sqrt()
+            })
+            .collect();
+        lengths.sort_unstable_by(f64::total_cmp);
+        let cell = lengths[lengths.len() / 2].max(tol * 4.0);
+        let key = |p: Point3| p.map(|c| (c / cell).floor() as i64);
+        let mut grid: HashMap<[i64; 3], Vec<u32>> = HashMap::new();
+        let mut seen = vec![false; mesh.positions.len()];
+        for &(f, k) in &boundary {
+            let (a, b) = edge(f, k);
+            for v in [a, b] {
+                if !std::mem::replace(&mut seen[v as usize], true) {
+                    grid.entry(key(mesh.positions[v as usize])).or_default().push(v);
+                }
+            }
+        }
+        // For every boundary edge, the boundary vertices strictly inside it, by parameter.
+        let mut splits: HashMap<u32, Vec<(u8, Vec<u32>)>> = HashMap::new();
+        for &(f, k) in &boundary {
+            let (a, b) = edge(f, k);
+            let (pa, pb) = (mesh.positions[a as usize], mesh.positions[b as usize]);
+            let d = sub(pb, pa);
+            let len2 = dot(d, d);
+            if len2 <= tol * tol {
+                continue;
+            }
+            let (ka, kb) = (key(pa), key(pb));
+            let mut on: Vec<(f64, u32)> = Vec::new();
+            for x in ka[0].min(kb[0]) - 1..=ka[0].max(kb[0]) + 1 {
+                for y in ka[1].min(kb[1]) - 1..=ka[1].max(kb[1]) + 1 {
+                    for z in ka[2].min(kb[2]) - 1..=ka[2].max(kb[2]) + 1 {
+                        let Some(list) = grid.get(&[x, y, z]) else { continue };
+                        for &v in list {
+                            if v == a || v == b {
+                                continue;
+                            }
+                            let p = mesh.positions[v as usize];
+                            let s = dot(sub(p, pa), d) / len2;
+                            if s <= 0.0 || s >= 1.0 {
+                                continue;
+                            }
+                            let q = add(pa, scale(d, s));
+                            if dist2(p, q) <= tol * tol
+                                && dist2(p, pa) > tol * tol
+                                && dist2(p, pb) > tol * tol
+                            {
+                                on.push((s, v));
+                            }
+                        }
+                    }
+                }
+            }
+            if !on.is_empty() {
+                on.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+                on.dedup_by_key(|x| x.1);
+                splits.entry(f).or_default().push((k, on.into_iter().map(|x| x.1).collect()));
+            }
+        }
+        if splits.is_empty() {
+            return;
+        }
+        // Re-triangulate each split triangle: its corners and split points form a convex polygon
+        // (the points lie on its edges), fanned from a corner not on a split edge when possible.
+        let mut faces: Vec<u32> = splits.keys().copied().collect();
+        faces.sort_unstable();
+        for f in faces {
+            let t = mesh.triangles[f as usize];
+            let list = &splits[&f];
+            let mut polygon: Vec<u32> = Vec::new();
+            for k in 0..3u8 {
+                polygon.push(t[k as usize]);
+                if let Some((_, vs)) = list.iter().find(|(kk, _)| *kk == k) {
+                    polygon.extend_from_slice(vs);
+                }
+            }
+            // The corner opposite the first split edge sees every split point of that edge.
+            let first = list.iter().map(|(k, _)| *k).min().unwrap_or(0);
+            let apex = t[(first as usize + 2) % 3];
+            let start = polygon.iter().position(|&v| v == apex).unwrap_or(0);
+            polygon.rotate_left(start);
+            let x = triangle_voxels[f as usize];
+            let mut fan = (1..polygon.len() - 1).map(|i| [polygon[0], polygon[i], polygon[i + 1]]);
+            if let Some(tri) = fan.next() {
+                mesh.triangles[f as usize] = tri;
+            }
+            for tri in fan {
+                mesh.triangles.push(tri);
+                triangle_voxels.push(x);
+            }
+        }
     }
 }
 
