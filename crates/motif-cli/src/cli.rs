@@ -285,6 +285,13 @@ pub struct ExampleArgs {
     /// Also write the known structure (symmetries, cell pitch, instances) as JSON.
     #[arg(long, value_name = "FILE")]
     pub structure: Option<PathBuf>,
+    /// Also write the known symmetries as a motif_symmetry_v1 annotation (for `motif deform`).
+    #[arg(long, value_name = "FILE")]
+    pub annotation: Option<PathBuf>,
+    /// Also write a sample drag as motif_handles_v1: one end of the longest axis fixed, the other
+    /// lifted over 30 frames.
+    #[arg(long, value_name = "FILE")]
+    pub handles: Option<PathBuf>,
     /// List the available examples.
     #[arg(long)]
     pub list: bool,
