@@ -338,3 +338,17 @@ fn deform_keeps_symmetry_exact_and_no_symmetry_does_not() {
     assert_eq!(o.status.code(), Some(2));
     assert!(!d.path().join("x.obj").exists());
 }
+
+#[test]
+fn bench_deform_prints_a_table_with_exact_residuals() {
+    let d = tmp();
+    let r = json_of(&motif(&["bench", "deform", "--generated-only", "--frames", "3", "--json"], d.path()));
+    let rows = r["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 5);
+    for row in rows {
+        assert!(row["dof"].as_u64().unwrap() > 0);
+        assert!(row["frame_ms"]["median"].as_f64().unwrap() > 0.0);
+        let res = row["residual"].as_f64().unwrap();
+        assert!(res <= 1e-9, "{}: residual {res}", row["model"]);
+    }
+}
