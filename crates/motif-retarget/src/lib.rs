@@ -10,3 +10,7 @@
 
 /// The thesis chapter this crate implements, for reports and `--version` output.
 pub const THESIS_CHAPTER: &str = "4: 3D model retargeting using offset statistics";
+
+pub mod offsets;
+pub mod plot;
+pub mod sparsity;
