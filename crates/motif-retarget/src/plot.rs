@@ -391,13 +391,12 @@ fn draw_curves(
     caption: &str,
     path: &Path,
 ) -> Result<()> {
-    let ymin = if xmax < 1.0 { 0.2 } else { 0.0 };
     let mut chart = ChartBuilder::on(area)
         .caption(caption, (FONT, 18).into_font())
         .margin(14)
         .x_label_area_size(40)
         .y_label_area_size(50)
-        .build_cartesian_2d(0.0..xmax * 100.0, ymin * 100.0..100.0)
+        .build_cartesian_2d(0.0..xmax * 100.0, 0.0..100.0)
         .map_err(|e| plot_err(path, e))?;
     chart
         .configure_mesh()
@@ -441,13 +440,16 @@ fn draw_curves(
                         .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
                 }
                 Category::Natural | Category::Unknown => {
-                    let (dash, gap) = if c.category == Category::Natural { (8, 5) } else { (2, 4) };
+                    let (dash, gap): (i32, i32) =
+                        if c.category == Category::Natural { (8, 5) } else { (2, 4) };
                     chart
                         .draw_series(DashedLineSeries::new(pts, dash, gap, style))
                         .map_err(|e| plot_err(path, e))?
                         .label(label)
                         .legend(move |(x, y)| {
-                            PathElement::new(vec![(x, y), (x + 7, y), (x + 13, y), (x + 20, y)], style)
+                            EmptyElement::at((x, y))
+                                + PathElement::new(vec![(0, 0), (dash, 0)], style)
+                                + PathElement::new(vec![(dash + gap, 0), (20, 0)], style)
                         });
                 }
             }
@@ -478,7 +480,7 @@ fn draw_curves(
     chart
         .draw_series(std::iter::once(Text::new(
             "x: thesis (man-made black, natural red), tau = 0.15",
-            (xmax * 100.0 * 0.02, ymin * 100.0 + (100.0 - ymin * 100.0) * 0.97),
+            (xmax * 100.0 * 0.02, 97.0),
             (FONT, 12).into_font(),
         )))
         .map_err(|e| plot_err(path, e))?;

@@ -293,3 +293,52 @@ fn grid_models_of_the_shared_data() {
     }
     assert!(failures.is_empty(), "manifest claims not met: {failures:?}");
 }
+
+/// The sparsity study over every model of the shared data (slow: run with `--release --
+/// --ignored`). Prints the per-category table against the thesis's numbers and, with
+/// `MOTIF_PLOT_DIR`, writes `sparsity.png` there.
+#[test]
+#[ignore = "about a minute in release over the 38 shared meshes"]
+fn sparsity_study_of_the_shared_data() {
+    use motif_retarget::sparsity::{inputs_from_manifest, sparsity_study};
+    let Some(dir) = data_dir() else {
+        println!("skipping: no test data (set MOTIF_DATA)");
+        return;
+    };
+    let inputs = inputs_from_manifest(&dir.join("MANIFEST.json")).expect("manifest");
+    let report = sparsity_study(&inputs, &SparsityOptions::default(), &NoProgress).expect("study");
+    println!(
+        "{:<36} {:<9} {:>7} {:>6}  offsets in 7% / 20% of bins at tau 0.15  ({:>5})",
+        "model", "category", "V", "feat", "s"
+    );
+    let k = report.options.taus.iter().position(|&t| (t - 0.15).abs() < 1e-12).expect("τ = 0.15");
+    for m in &report.models {
+        let name = m.path.file_name().and_then(|n| n.to_str()).unwrap_or("?");
+        match (&m.error, m.per_tau.get(k)) {
+            (None, Some(t)) => println!(
+                "{:<36} {:<9} {:>7} {:>6}  {:>5.1}% / {:>5.1}%  ({} offsets, {} bins)  {:>5.2}",
+                name,
+                m.category.as_str(),
+                m.vertices,
+                m.features,
+                100.0 * t.shares[0],
+                100.0 * t.shares[1],
+                t.offsets,
+                t.bins,
+                m.seconds
+            ),
+            (e, _) => println!("{name}: failed: {e:?}"),
+        }
+    }
+    println!("\n{}", report.table());
+    println!("study: {:.1} s", report.seconds);
+    if let Ok(out) = std::env::var("MOTIF_PLOT_DIR") {
+        motif_retarget::plot::plot_sparsity(&report, &Path::new(&out).join("sparsity.png")).expect("plot");
+        std::fs::write(
+            Path::new(&out).join("sparsity.json"),
+            serde_json::to_string_pretty(&report).expect("json"),
+        )
+        .expect("write json");
+    }
+    assert!(report.models.iter().all(|m| m.error.is_none()));
+}

@@ -212,14 +212,15 @@ impl OffsetHistogram {
     /// units; thesis 4.4: 0.15), keeping peaks with at least `min_support` offsets, strongest
     /// first (ties by index).
     pub fn peaks(&self, radius: f64, min_support: u32) -> Vec<HistogramPeak> {
-        let r = (radius / self.bin_size).max(0.0);
+        // 0.15 / 0.05 is 2.9999999999999996 in floating point: a little slack keeps it 3 bins.
+        let r = (radius / self.bin_size + 1e-9).max(0.0);
         let ri = r.floor() as i32;
         let mut ball = Vec::new();
         for di in -ri..=ri {
             for dj in -ri..=ri {
                 for dk in -ri..=ri {
                     let d2 = (di * di + dj * dj + dk * dk) as f64;
-                    if d2 > 0.0 && d2 <= r * r + 1e-9 {
+                    if d2 > 0.0 && d2 <= r * r {
                         ball.push([di, dj, dk]);
                     }
                 }
@@ -288,13 +289,14 @@ mod tests {
         for _ in 0..15 {
             h.add([0.0, 0.5, 0.0]);
         }
-        // A bump next to the first peak is suppressed.
+        // A bump three bins from the first peak is suppressed.
         for _ in 0..5 {
-            h.add([0.6, 0.0, 0.0]);
+            h.add([0.7, 0.0, 0.0]);
         }
         let p = h.peaks(0.15, 3);
         assert_eq!(p.len(), 2, "{p:?}");
         assert_eq!(p[0].support, 20);
+        assert_eq!(p[0].index, [10, 0, 0], "a tie goes to the smaller index");
         assert!((p[0].mean_offset[0] - 0.525).abs() < 1e-9);
         assert_eq!(p[1].index, [0, 10, 0]);
     }

@@ -7,6 +7,8 @@
 //! 2. **Sample** a dense cloud (Poisson disc, 0.02) and features (re-sampled at 0.06, plus thinned
 //!    mesh vertices), and describe each feature by SHOT in the world frame with radius 0.2, the
 //!    dense cloud as support ([`prepare_features`]; see [`features`] for the reading of 4.2.1).
+//!    Thin models (fewer than 12 000 dense points at 0.02) get proportionally finer spacings
+//!    ([`Density`]).
 //! 3. **Match** each feature to the most similar feature farther than τ = 0.15 (eq. 4.1,
 //!    [`match_features`]).
 //! 4. **Histogram** the offsets in 0.05 bins, `v` and `−v` folded together
@@ -441,7 +443,7 @@ pub struct StageTimings {
 /// Counts of the sampled model.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct SampleCounts {
-    /// Mesh vertices.
+    /// Mesh vertices (0 from [`analyze_features`], which does not see the mesh).
     pub mesh_vertices: usize,
     /// Dense points (SHOT support).
     pub dense: usize,
@@ -455,6 +457,12 @@ pub struct SampleCounts {
     pub offsets: usize,
     /// Non-empty histogram bins.
     pub bins: usize,
+    /// Dense spacing used, normalised units (`dense_spacing` × `spacing_scale`).
+    pub dense_spacing: f64,
+    /// Feature spacing used, normalised units.
+    pub feature_spacing: f64,
+    /// Factor the spacings were scaled by for a thin model (see [`Density`]); 1 otherwise.
+    pub spacing_scale: f64,
 }
 
 /// The result of [`analyze_offsets`]: serialisable for `motif offsets MESH --json OUT`.
@@ -737,6 +745,9 @@ pub fn analyze_features(
             valid_features: features.num_valid(),
             offsets: hist.total(),
             bins: hist.num_bins(),
+            dense_spacing: features.dense_spacing,
+            feature_spacing: features.feature_spacing,
+            spacing_scale: features.spacing_scale,
         },
         dominant,
         principal,

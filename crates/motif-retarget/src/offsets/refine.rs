@@ -81,7 +81,7 @@ pub struct Prober<'a> {
     /// vertices are left out: their area-averaged normals at sharp corners (a wall's edge) are no
     /// tangent plane, and a point-to-plane residual against them pulls the fit sideways.
     tree: KdTree,
-    /// Moving cloud of the fine ICP iterations and of the overlap measure (dense indices).
+    /// Moving cloud of the fine ICP iterations (dense indices of surface samples).
     moving: Vec<usize>,
     /// Moving cloud of the coarse ICP iterations and of the overlap measure: the feature samples
     /// (at most [`MAX_COARSE`]).
@@ -338,7 +338,7 @@ fn solve3(m: [[f64; 3]; 3], b: Point3) -> Option<Point3> {
             + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
     };
     let d = det(m);
-    if !(d.abs() > 1e-300) {
+    if d.is_nan() || d.abs() <= 1e-300 {
         return None;
     }
     let mut x = [0.0; 3];
