@@ -58,6 +58,10 @@ pub enum Command {
     /// Symmetries: detect them automatically, or check an annotation against a mesh.
     #[command(subcommand)]
     Symmetry(SymmetryCommand),
+    /// Dominant and principal translational offsets of a model (thesis 4.2.1, 4.4).
+    Offsets(OffsetsArgs),
+    /// The offset-sparsity study (thesis 4.3): how concentrated offsets are, per category.
+    Sparsity(SparsityArgs),
     /// Multi-label MRF problems (alpha-expansion on Boykov–Kolmogorov max-flow).
     #[command(subcommand)]
     Mrf(MrfCommand),
@@ -285,6 +289,13 @@ pub struct ExampleArgs {
     /// Also write the known structure (symmetries, cell pitch, instances) as JSON.
     #[arg(long, value_name = "FILE")]
     pub structure: Option<PathBuf>,
+    /// Also write the known symmetries as a motif_symmetry_v1 annotation (for `motif deform`).
+    #[arg(long, value_name = "FILE")]
+    pub annotation: Option<PathBuf>,
+    /// Also write a sample drag as motif_handles_v1: one end of the longest axis fixed, the other
+    /// lifted over 30 frames.
+    #[arg(long, value_name = "FILE")]
+    pub handles: Option<PathBuf>,
     /// List the available examples.
     #[arg(long)]
     pub list: bool,
@@ -450,6 +461,33 @@ pub struct SymmetryDetectArgs {
     /// Also annotate approximate symmetries (residual below 1e-2 of the diagonal).
     #[arg(long)]
     pub approximate: bool,
+    #[command(flatten)]
+    pub json: JsonArg,
+}
+
+#[derive(Debug, Args)]
+pub struct OffsetsArgs {
+    /// Input mesh.
+    pub mesh: PathBuf,
+    /// Picture of the offset histogram (three projections) with the chosen offsets (PNG).
+    #[arg(long, value_name = "PNG")]
+    pub plot: Option<PathBuf>,
+    /// τ of eq. 4.1: minimum offset length, in units of the normalised model ([-1, 1]).
+    #[arg(long, default_value_t = 0.15)]
+    pub tau: f64,
+    #[command(flatten)]
+    pub json: JsonArg,
+}
+
+#[derive(Debug, Args)]
+pub struct SparsityArgs {
+    /// A MANIFEST.json (categories from it), or mesh files and folders (category from a parent
+    /// folder named man-made or natural).
+    #[arg(required = true)]
+    pub inputs: Vec<PathBuf>,
+    /// Cumulative distributions per category and τ (PNG).
+    #[arg(long, value_name = "PNG")]
+    pub plot: Option<PathBuf>,
     #[command(flatten)]
     pub json: JsonArg,
 }

@@ -338,3 +338,49 @@ fn deform_keeps_symmetry_exact_and_no_symmetry_does_not() {
     assert_eq!(o.status.code(), Some(2));
     assert!(!d.path().join("x.obj").exists());
 }
+
+#[test]
+fn bench_deform_prints_a_table_with_exact_residuals() {
+    let d = tmp();
+    let r = json_of(&motif(&["bench", "deform", "--generated-only", "--frames", "3", "--json"], d.path()));
+    let rows = r["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 5);
+    for row in rows {
+        assert!(row["dof"].as_u64().unwrap() > 0);
+        assert!(row["frame_ms"]["median"].as_f64().unwrap() > 0.0);
+        let res = row["residual"].as_f64().unwrap();
+        assert!(res <= 1e-9, "{}: residual {res}", row["model"]);
+    }
+}
+
+#[test]
+fn offsets_find_the_shelf_pitch_and_sparsity_runs_on_a_folder() {
+    let d = tmp();
+    assert!(motif(&["example", "shelf", "shelf.obj", "--structure", "s.json"], d.path()).status.success());
+    let s: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.path().join("s.json")).unwrap()).unwrap();
+    let r = json_of(&motif(&["offsets", "shelf.obj", "--plot", "shelf.png", "--json"], d.path()));
+    let png = std::fs::read(d.path().join("shelf.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+    let principal = r["principal"].as_array().unwrap();
+    for pitch in s["cell_pitch"].as_array().unwrap() {
+        let want: Vec<f64> = pitch.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+        let len = want.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let found = principal.iter().any(|p| {
+            let got: Vec<f64> =
+                p["offset_model"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+            let (plus, minus): (f64, f64) = (0..3).fold((0.0, 0.0), |(a, b), k| {
+                (a + (got[k] - want[k]).powi(2), b + (got[k] + want[k]).powi(2))
+            });
+            plus.min(minus).sqrt() < 0.02 * len
+        });
+        assert!(found, "pitch {want:?} not among {principal:?}");
+    }
+    // Sparsity over a folder: categories come from folder names.
+    std::fs::create_dir_all(d.path().join("set/man-made")).unwrap();
+    std::fs::create_dir_all(d.path().join("set/natural")).unwrap();
+    assert!(motif(&["example", "fence", "set/man-made/fence.obj"], d.path()).status.success());
+    assert!(motif(&["example", "gear", "set/natural/gear.obj"], d.path()).status.success());
+    let r = json_of(&motif(&["sparsity", "set", "--json"], d.path()));
+    assert_eq!(r["models"].as_array().unwrap().len(), 2);
+}

@@ -10,6 +10,9 @@
 //! - [`mod@maxflow`]: Boykov–Kolmogorov max-flow / min-cut with search-tree reuse;
 //! - [`mod@alpha_expansion`]: alpha-expansion over arbitrary graphs with per-edge pairwise callbacks;
 //! - [`mod@mrf_grid`]: the shared `mrf_grid_v1` problem format (load, validate, solve, generate).
+//!
+//! Modules so far: [`offsets`] (offset statistics: dominant and principal offsets, 4.2.1, 4.4),
+//! [`sparsity`] (the sparsity study, 4.3) and [`plot`] (their pictures).
 
 #![warn(missing_docs)]
 
@@ -29,3 +32,7 @@ pub use mrf_grid::{Connectivity, GridProblem, GridSolution, InitLabels, generate
 
 /// The thesis chapter this crate implements, for reports and `--version` output.
 pub const THESIS_CHAPTER: &str = "4: 3D model retargeting using offset statistics";
+
+pub mod offsets;
+pub mod plot;
+pub mod sparsity;

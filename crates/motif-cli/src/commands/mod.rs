@@ -11,6 +11,7 @@ mod features;
 mod info;
 mod mrf;
 mod normals;
+mod offsets;
 mod sample;
 mod symmetry;
 
@@ -39,6 +40,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Symmetry(SymmetryCommand::Check(a)) => symmetry::check(a, g),
         Command::Deform(a) => deform::run(a, g),
         Command::Bench(BenchCommand::Deform(a)) => bench::deform(a, g),
+        Command::Offsets(a) => offsets::offsets(a, g),
+        Command::Sparsity(a) => offsets::sparsity(a, g),
         Command::Mrf(MrfCommand::Solve(a)) => mrf::solve(a, g),
         Command::Mrf(MrfCommand::Generate(a)) => mrf::generate(a, g),
         Command::Example(a) => example::run(a, g),

@@ -1,0 +1,512 @@
+//! Pictures of offset statistics (`motif offsets --plot PNG`) and of the sparsity study
+//! (`motif sparsity --plot PNG`), drawn with plotters into an RGB buffer and written as PNG.
+//!
+//! Text uses DejaVu Sans embedded from the `dejavu` crate (registered with plotters' `ab_glyph`
+//! backend), so pictures render the same on any machine without system fonts or fontconfig.
+//!
+//! The offset picture shows why the principal offsets were chosen:
+//! - three projections of the 3-D offset histogram (onto the XY, XZ and YZ planes; the bin masses
+//!   summed along the dropped axis, log colour scale), drawn point-symmetric (each bin also at
+//!   `−v`, since `v` and `−v` are one repetition), with the dominant offsets circled (accepted ones
+//!   in blue, rejected ones grey) and the principal offsets as arrows from the origin labelled
+//!   `v1 …` and their support;
+//! - a bar chart of the dominant offsets' support, principal ones highlighted, with the verdict and
+//!   the principal offsets in model units below.
+
+use std::path::Path;
+use std::sync::Once;
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::{FontStyle, register_font};
+
+use crate::offsets::{DominantStatus, OffsetAnalysis, OffsetsError, Result};
+use crate::sparsity::{Category, SparsityReport};
+
+const FONT: &str = "sans-serif";
+static FONT_ONCE: Once = Once::new();
+
+fn register_fonts() {
+    FONT_ONCE.call_once(|| {
+        // The bytes are a valid TrueType font shipped by the `dejavu` crate; a failure here would
+        // only mean missing text, never a wrong picture.
+        let _ = register_font(FONT, FontStyle::Normal, dejavu::sans::regular());
+        let _ = register_font(FONT, FontStyle::Bold, dejavu::sans::bold());
+    });
+}
+
+fn plot_err(path: &Path, e: impl std::fmt::Display) -> OffsetsError {
+    OffsetsError::Plot { path: path.to_path_buf(), message: e.to_string() }
+}
+
+/// Renders into an RGB buffer with `draw`, then writes it to `path` as PNG.
+fn render_png(
+    path: &Path,
+    size: (u32, u32),
+    draw: impl FnOnce(&DrawingArea<BitMapBackend, Shift>) -> Result<()>,
+) -> Result<()> {
+    register_fonts();
+    let mut buf = vec![255u8; size.0 as usize * size.1 as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, size).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
+        draw(&root)?;
+        root.present().map_err(|e| plot_err(path, e))?;
+    }
+    let file = std::fs::File::create(path).map_err(|e| plot_err(path, e))?;
+    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), size.0, size.1);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    let mut w = enc.write_header().map_err(|e| plot_err(path, e))?;
+    w.write_image_data(&buf).map_err(|e| plot_err(path, e))?;
+    w.finish().map_err(|e| plot_err(path, e))?;
+    Ok(())
+}
+
+/// A light-to-dark heat colour for `t` in [0, 1] (pale yellow → orange → red → dark purple).
+fn heat(t: f64) -> RGBColor {
+    const STOPS: [(f64, [f64; 3]); 5] = [
+        (0.0, [255.0, 245.0, 200.0]),
+        (0.3, [253.0, 190.0, 90.0]),
+        (0.6, [235.0, 90.0, 40.0]),
+        (0.85, [170.0, 20.0, 60.0]),
+        (1.0, [60.0, 10.0, 70.0]),
+    ];
+    let t = t.clamp(0.0, 1.0);
+    let mut k = 0;
+    while k + 2 < STOPS.len() && t > STOPS[k + 1].0 {
+        k += 1;
+    }
+    let (t0, c0) = STOPS[k];
+    let (t1, c1) = STOPS[k + 1];
+    let s = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
+    let c = [0, 1, 2].map(|i| (c0[i] + s * (c1[i] - c0[i])).round() as u8);
+    RGBColor(c[0], c[1], c[2])
+}
+
+/// Colours of the principal offsets' arrows.
+const PRINCIPAL_COLOURS: [RGBColor; 3] =
+    [RGBColor(0, 110, 200), RGBColor(0, 150, 60), RGBColor(150, 60, 200)];
+
+/// Draws the offset picture of `analysis` to `path` (PNG, 1500 × 1000 pixels).
+pub fn plot_offsets(analysis: &OffsetAnalysis, title: &str, path: &Path) -> Result<()> {
+    render_png(path, (1500, 1000), |root| {
+        let (top, bottom) = root.split_vertically(560);
+        let panels = top.split_evenly((1, 3));
+        let h = analysis.bin_size;
+        // Symmetric extent covering every bin and principal offset, at least 0.5.
+        let mut extent: f64 = 0.5;
+        for b in &analysis.histogram {
+            for c in b.index {
+                extent = extent.max((c.abs() as f64 + 0.5) * h);
+            }
+        }
+        for p in &analysis.principal {
+            for c in p.offset {
+                extent = extent.max(c.abs());
+            }
+        }
+        let extent = extent * 1.05;
+        let axes = [(0usize, 1usize, "XY"), (0, 2, "XZ"), (1, 2, "YZ")];
+        for (panel, &(a, b, name)) in panels.iter().zip(axes.iter()) {
+            draw_projection(panel, analysis, a, b, name, extent, path)?;
+        }
+        draw_summary(&bottom, analysis, title, path)
+    })
+}
+
+fn draw_projection(
+    area: &DrawingArea<BitMapBackend, Shift>,
+    analysis: &OffsetAnalysis,
+    a: usize,
+    b: usize,
+    name: &str,
+    extent: f64,
+    path: &Path,
+) -> Result<()> {
+    let axis = ["x", "y", "z"];
+    let h = analysis.bin_size;
+    // Project the (point-symmetric) histogram.
+    let mut cells: std::collections::HashMap<(i32, i32), f64> = std::collections::HashMap::new();
+    for bin in &analysis.histogram {
+        let (i, j) = (bin.index[a], bin.index[b]);
+        *cells.entry((i, j)).or_default() += bin.count as f64;
+        if analysis.parameters.sign == crate::offsets::SignConvention::Canonical {
+            *cells.entry((-i, -j)).or_default() += bin.count as f64;
+        }
+    }
+    let max = cells.values().copied().fold(1.0, f64::max);
+    let mut chart = ChartBuilder::on(area)
+        .caption(format!("offsets projected on {name} (bin {h} , log colour)"), (FONT, 18).into_font())
+        .margin(12)
+        .x_label_area_size(36)
+        .y_label_area_size(46)
+        .build_cartesian_2d(-extent..extent, -extent..extent)
+        .map_err(|e| plot_err(path, e))?;
+    chart
+        .configure_mesh()
+        .x_desc(format!("{} (normalised)", axis[a]))
+        .y_desc(format!("{} (normalised)", axis[b]))
+        .label_style((FONT, 13))
+        .axis_desc_style((FONT, 14))
+        .light_line_style(RGBColor(235, 235, 235))
+        .draw()
+        .map_err(|e| plot_err(path, e))?;
+    let log_max = (1.0 + max).ln();
+    chart
+        .draw_series(cells.iter().map(|(&(i, j), &m)| {
+            let t = (1.0 + m).ln() / log_max;
+            let (x, y) = (i as f64 * h, j as f64 * h);
+            Rectangle::new([(x - 0.5 * h, y - 0.5 * h), (x + 0.5 * h, y + 0.5 * h)], heat(t).filled())
+        }))
+        .map_err(|e| plot_err(path, e))?;
+    // τ circle: offsets inside it are excluded by eq. 4.1.
+    let tau = analysis.parameters.tau;
+    let circle: Vec<(f64, f64)> = (0..=72)
+        .map(|k| {
+            let t = k as f64 / 72.0 * std::f64::consts::TAU;
+            (tau * t.cos(), tau * t.sin())
+        })
+        .collect();
+    chart
+        .draw_series(std::iter::once(PathElement::new(circle, RGBColor(150, 150, 150).stroke_width(1))))
+        .map_err(|e| plot_err(path, e))?;
+    // Dominant offsets.
+    for (k, d) in analysis.dominant.iter().enumerate() {
+        let colour = match d.status {
+            DominantStatus::Accepted => RGBColor(0, 90, 200),
+            _ => RGBColor(140, 140, 140),
+        };
+        for s in [1.0, -1.0] {
+            let p = (s * d.offset[a], s * d.offset[b]);
+            chart
+                .draw_series(std::iter::once(Circle::new(p, 9, colour.stroke_width(2))))
+                .map_err(|e| plot_err(path, e))?;
+            if s > 0.0 && k < 8 {
+                chart
+                    .draw_series(std::iter::once(Text::new(
+                        format!("{k}"),
+                        (p.0 + 0.02 * extent, p.1 + 0.03 * extent),
+                        (FONT, 12).into_font().color(&colour),
+                    )))
+                    .map_err(|e| plot_err(path, e))?;
+            }
+        }
+    }
+    // Principal offsets as arrows.
+    for (k, p) in analysis.principal.iter().enumerate() {
+        let colour = PRINCIPAL_COLOURS[k % PRINCIPAL_COLOURS.len()];
+        let (x, y) = (p.offset[a], p.offset[b]);
+        let len = (x * x + y * y).sqrt();
+        if len < 1e-3 * extent {
+            // Perpendicular to this view: a dot.
+            chart
+                .draw_series(std::iter::once(Circle::new((0.0, 0.0), 5, colour.filled())))
+                .map_err(|e| plot_err(path, e))?;
+            continue;
+        }
+        let head = 0.06 * extent;
+        let (ux, uy) = (x / len, y / len);
+        let back = (x - head * ux, y - head * uy);
+        let left = (back.0 - 0.45 * head * uy, back.1 + 0.45 * head * ux);
+        let right = (back.0 + 0.45 * head * uy, back.1 - 0.45 * head * ux);
+        chart
+            .draw_series(std::iter::once(PathElement::new(vec![(0.0, 0.0), (x, y)], colour.stroke_width(3))))
+            .map_err(|e| plot_err(path, e))?;
+        chart
+            .draw_series(std::iter::once(Polygon::new(vec![(x, y), left, right], colour.filled())))
+            .map_err(|e| plot_err(path, e))?;
+        chart
+            .draw_series(std::iter::once(Text::new(
+                format!("v{} ({})", k + 1, p.support),
+                (x + 0.03 * extent * ux.signum(), y + 0.05 * extent),
+                (FONT, 15).into_font().style(FontStyle::Bold).color(&colour),
+            )))
+            .map_err(|e| plot_err(path, e))?;
+    }
+    Ok(())
+}
+
+fn draw_summary(
+    area: &DrawingArea<BitMapBackend, Shift>,
+    analysis: &OffsetAnalysis,
+    title: &str,
+    path: &Path,
+) -> Result<()> {
+    let (bars, text) = area.split_horizontally(820);
+    let n = analysis.dominant.len().max(1);
+    let max = analysis.dominant.iter().map(|d| d.peak.support).max().unwrap_or(1).max(1) as f64;
+    let total = analysis.counts.offsets.max(1) as f64;
+    let mut chart = ChartBuilder::on(&bars)
+        .caption("support of the dominant offsets (histogram peaks, strongest first)", (FONT, 18).into_font())
+        .margin(14)
+        .x_label_area_size(40)
+        .y_label_area_size(56)
+        .build_cartesian_2d(-0.5..(n as f64 - 0.5), 0.0..max * 1.15)
+        .map_err(|e| plot_err(path, e))?;
+    chart
+        .configure_mesh()
+        .disable_x_mesh()
+        .x_desc("dominant offset #")
+        .y_desc("offsets in the peak's 27 bins")
+        .x_labels(n.min(20))
+        .x_label_formatter(&|x| format!("{:.0}", x))
+        .label_style((FONT, 13))
+        .axis_desc_style((FONT, 14))
+        .draw()
+        .map_err(|e| plot_err(path, e))?;
+    for (k, d) in analysis.dominant.iter().enumerate() {
+        let principal = analysis.principal.iter().position(|p| p.dominant == k);
+        let colour = match (principal, d.status) {
+            (Some(p), _) => PRINCIPAL_COLOURS[p % PRINCIPAL_COLOURS.len()],
+            (None, DominantStatus::Accepted) => RGBColor(150, 180, 220),
+            _ => RGBColor(200, 200, 200),
+        };
+        let x = k as f64;
+        let y = d.peak.support as f64;
+        chart
+            .draw_series(std::iter::once(Rectangle::new([(x - 0.38, 0.0), (x + 0.38, y)], colour.filled())))
+            .map_err(|e| plot_err(path, e))?;
+        let label = match (principal, d.status) {
+            (Some(p), _) => format!("v{}", p + 1),
+            (None, DominantStatus::Accepted) => String::new(),
+            (None, DominantStatus::Collapsed) => "col".into(),
+            (None, DominantStatus::Drifted) => "dri".into(),
+            (None, DominantStatus::LowOverlap) => "low".into(),
+            (None, DominantStatus::NoOverlap) => "none".into(),
+            (None, DominantStatus::Duplicate { .. }) => "dup".into(),
+        };
+        if !label.is_empty() {
+            chart
+                .draw_series(std::iter::once(Text::new(
+                    label,
+                    (x - 0.3, y + 0.03 * max),
+                    (FONT, 12).into_font().color(&colour),
+                )))
+                .map_err(|e| plot_err(path, e))?;
+        }
+    }
+
+    // Text panel.
+    let font = |s: u32| (FONT, s).into_font();
+    let mut lines: Vec<(String, u32, RGBColor)> = vec![(title.to_string(), 20, BLACK)];
+    let rep = &analysis.repetition;
+    let verdict = match rep.kind {
+        crate::offsets::Repetition::Repetitive => ("REPETITIVE", RGBColor(0, 130, 60)),
+        crate::offsets::Repetition::NoRepetition => ("NO REPETITION", RGBColor(190, 40, 40)),
+    };
+    lines.push((verdict.0.to_string(), 20, verdict.1));
+    lines.push((
+        format!(
+            "{} offsets in {} bins; top peak {:.1}% ({:.1}x flat)",
+            analysis.counts.offsets,
+            analysis.counts.bins,
+            100.0 * rep.top_peak_share,
+            rep.concentration
+        ),
+        14,
+        BLACK,
+    ));
+    for (k, p) in analysis.principal.iter().enumerate() {
+        let m = p.offset_model;
+        let mut s = format!(
+            "v{} = ({:.4}, {:.4}, {:.4})  |v| = {:.4}  support {} ({:.1}%)",
+            k + 1,
+            m[0],
+            m[1],
+            m[2],
+            p.length_model,
+            p.support,
+            100.0 * p.support as f64 / total
+        );
+        if p.multiple > 1 {
+            s += &format!("  = peak #{} / {}", p.selected, p.multiple);
+        }
+        if p.divisor > 1 {
+            s += &format!("  / {} (below tau)", p.divisor);
+        }
+        lines.push((s, 14, PRINCIPAL_COLOURS[k % PRINCIPAL_COLOURS.len()]));
+        lines.push((
+            format!("      overlap {:.0}%, contrast {:+.0} pts", 100.0 * p.overlap, 100.0 * p.contrast),
+            13,
+            RGBColor(80, 80, 80),
+        ));
+    }
+    if analysis.principal.is_empty() {
+        lines.push(("no principal offset".into(), 14, BLACK));
+    }
+    let t = &analysis.timings;
+    lines.push((
+        format!("model units; normalised = {:.4} x (model - centre)", analysis.normalisation.scale),
+        13,
+        RGBColor(80, 80, 80),
+    ));
+    lines.push((
+        format!(
+            "{} dense, {} features; {:.2} s (sample {:.2}, SHOT {:.2}, match {:.2}, ICP {:.2})",
+            analysis.counts.dense,
+            analysis.counts.features,
+            t.total,
+            t.sampling,
+            t.shot,
+            t.matching,
+            t.refinement
+        ),
+        13,
+        RGBColor(80, 80, 80),
+    ));
+    let mut y = 20;
+    for (s, size, colour) in lines {
+        text.draw(&Text::new(s, (10, y), font(size).color(&colour))).map_err(|e| plot_err(path, e))?;
+        y += size as i32 + 10;
+    }
+    Ok(())
+}
+
+/// Draws the sparsity study's cumulative curves to `path` (PNG, 1400 × 620 pixels): offsets
+/// share against bin share per category (solid man-made, dashed natural, dotted unknown) and τ
+/// (colour), with the uniform diagonal, in full and zoomed to the first 20% of the bins (like the
+/// thesis's Fig. 4.5).
+pub fn plot_sparsity(report: &SparsityReport, path: &Path) -> Result<()> {
+    render_png(path, (1400, 620), |root| {
+        let (left, right) = root.split_horizontally(700);
+        draw_curves(&left, report, 1.0, "(a) cumulative distribution", path)?;
+        draw_curves(&right, report, 0.2, "(b) zoom-in", path)
+    })
+}
+
+const TAU_COLOURS: [RGBColor; 6] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(148, 103, 189),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+    RGBColor(120, 120, 120),
+];
+
+fn draw_curves(
+    area: &DrawingArea<BitMapBackend, Shift>,
+    report: &SparsityReport,
+    xmax: f64,
+    caption: &str,
+    path: &Path,
+) -> Result<()> {
+    let mut chart = ChartBuilder::on(area)
+        .caption(caption, (FONT, 18).into_font())
+        .margin(14)
+        .x_label_area_size(40)
+        .y_label_area_size(50)
+        .build_cartesian_2d(0.0..xmax * 100.0, 0.0..100.0)
+        .map_err(|e| plot_err(path, e))?;
+    chart
+        .configure_mesh()
+        .x_desc("bins, largest first (% of non-empty bins)")
+        .y_desc("offsets (%)")
+        .label_style((FONT, 13))
+        .axis_desc_style((FONT, 14))
+        .light_line_style(RGBColor(235, 235, 235))
+        .draw()
+        .map_err(|e| plot_err(path, e))?;
+    chart
+        .draw_series(LineSeries::new(
+            vec![(0.0, 0.0), (100.0, 100.0)],
+            RGBColor(170, 170, 170).stroke_width(2),
+        ))
+        .map_err(|e| plot_err(path, e))?
+        .label("uniform")
+        .legend(|(x, y)| {
+            PathElement::new(vec![(x, y), (x + 20, y)], RGBColor(170, 170, 170).stroke_width(2))
+        });
+    let n = report.options.curve_points;
+    for c in &report.categories {
+        for (k, t) in c.per_tau.iter().enumerate() {
+            let colour = TAU_COLOURS[k % TAU_COLOURS.len()];
+            let pts: Vec<(f64, f64)> = t
+                .curve
+                .iter()
+                .enumerate()
+                .map(|(i, &y)| (100.0 * i as f64 / (n - 1) as f64, 100.0 * y))
+                .filter(|&(x, _)| x <= xmax * 100.0 + 1e-9)
+                .collect();
+            let label = format!("{} ({}), tau = {}", c.category.as_str(), c.models, t.tau);
+            let width = if (t.tau - 0.15).abs() < 1e-9 { 3 } else { 2 };
+            let style = colour.stroke_width(width);
+            match c.category {
+                Category::ManMade => {
+                    chart
+                        .draw_series(LineSeries::new(pts, style))
+                        .map_err(|e| plot_err(path, e))?
+                        .label(label)
+                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
+                }
+                Category::Natural | Category::Unknown => {
+                    let (dash, gap): (i32, i32) =
+                        if c.category == Category::Natural { (8, 5) } else { (2, 4) };
+                    chart
+                        .draw_series(DashedLineSeries::new(pts, dash, gap, style))
+                        .map_err(|e| plot_err(path, e))?
+                        .label(label)
+                        .legend(move |(x, y)| {
+                            EmptyElement::at((x, y))
+                                + PathElement::new(vec![(0, 0), (dash, 0)], style)
+                                + PathElement::new(vec![(dash + gap, 0), (20, 0)], style)
+                        });
+                }
+            }
+        }
+    }
+    // The thesis's numbers as markers.
+    for r in &report.thesis {
+        if r.bins <= xmax + 1e-9 {
+            let colour =
+                if r.category == Category::ManMade { RGBColor(0, 0, 0) } else { RGBColor(200, 0, 0) };
+            chart
+                .draw_series(std::iter::once(Cross::new(
+                    (100.0 * r.bins, 100.0 * r.offsets),
+                    6,
+                    colour.stroke_width(2),
+                )))
+                .map_err(|e| plot_err(path, e))?;
+        }
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(RGBColor(200, 200, 200))
+        .label_font((FONT, 12))
+        .draw()
+        .map_err(|e| plot_err(path, e))?;
+    chart
+        .draw_series(std::iter::once(Text::new(
+            "x: thesis (man-made black, natural red), tau = 0.15",
+            (xmax * 100.0 * 0.02, 97.0),
+            (FONT, 12).into_font(),
+        )))
+        .map_err(|e| plot_err(path, e))?;
+    Ok(())
+}
+
+/// A scatter of points projected on two axes (`a`, `b` ∈ {0, 1, 2}), for looking at a model or a
+/// cloud: `points` normalised or not, drawn as small dots.
+pub fn plot_points(points: &[[f64; 3]], a: usize, b: usize, title: &str, path: &Path) -> Result<()> {
+    render_png(path, (900, 900), |root| {
+        let lo = |i: usize| points.iter().map(|p| p[i]).fold(f64::INFINITY, f64::min);
+        let hi = |i: usize| points.iter().map(|p| p[i]).fold(f64::NEG_INFINITY, f64::max);
+        let (xa, xb, ya, yb) = (lo(a), hi(a), lo(b), hi(b));
+        let span = (xb - xa).max(yb - ya).max(1e-12) * 0.52;
+        let (cx, cy) = (0.5 * (xa + xb), 0.5 * (ya + yb));
+        let mut chart = ChartBuilder::on(root)
+            .caption(title, (FONT, 18).into_font())
+            .margin(12)
+            .x_label_area_size(36)
+            .y_label_area_size(56)
+            .build_cartesian_2d(cx - span..cx + span, cy - span..cy + span)
+            .map_err(|e| plot_err(path, e))?;
+        chart.configure_mesh().label_style((FONT, 12)).draw().map_err(|e| plot_err(path, e))?;
+        chart
+            .draw_series(points.iter().map(|p| Circle::new((p[a], p[b]), 1, RGBColor(40, 40, 40).filled())))
+            .map_err(|e| plot_err(path, e))?;
+        Ok(())
+    })
+}

@@ -1,0 +1,295 @@
+//! Offset statistics (thesis 4.2.1, 4.4) and the sparsity study (4.3): quality on procedural
+//! shapes with known lattices, the no-repetition verdict, invariances, and real data from
+//! `shared/data` when it is present.
+
+use std::path::{Path, PathBuf};
+
+use motif_core::Point3;
+use motif_core::mesh::TriMesh;
+use motif_core::procedural::generate;
+use motif_core::progress::NoProgress;
+use motif_retarget::offsets::{OffsetAnalysis, OffsetOptions, PrincipalOffset, Repetition, analyze_offsets};
+use motif_retarget::sparsity::{SparsityOptions, model_sparsity};
+
+fn norm(v: Point3) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+/// Relative distance of `v` to `p` up to sign.
+fn rel_err(v: Point3, p: Point3) -> f64 {
+    let d = [v[0] - p[0], v[1] - p[1], v[2] - p[2]];
+    let s = [v[0] + p[0], v[1] + p[1], v[2] + p[2]];
+    norm(d).min(norm(s)) / norm(p)
+}
+
+fn analyze(mesh: &TriMesh) -> OffsetAnalysis {
+    analyze_offsets(mesh, &OffsetOptions::default(), &NoProgress).expect("analysis runs")
+}
+
+/// A UV sphere of radius 1 with `bump` times a smooth radial perturbation (0: a sphere; 0.25: an
+/// irregular blob).
+fn blob(bump: f64) -> TriMesh {
+    let (nu, nv) = (96usize, 48usize);
+    let mut pos = vec![[0.0, 0.0, 1.0]];
+    for j in 1..nv {
+        let th = std::f64::consts::PI * j as f64 / nv as f64;
+        for i in 0..nu {
+            let ph = std::f64::consts::TAU * i as f64 / nu as f64;
+            let d = [th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()];
+            let r = 1.0
+                + bump
+                    * ((3.0 * d[0] + 1.0).sin() * (2.0 * d[1] - 0.5).cos() + 0.5 * (5.0 * d[2]).sin() * d[0]);
+            pos.push(d.map(|c| c * r));
+        }
+    }
+    pos.push([0.0, 0.0, -1.0]);
+    let south = pos.len() as u32 - 1;
+    let id = |j: usize, i: usize| (1 + (j - 1) * nu + i % nu) as u32;
+    let mut tri = Vec::new();
+    for i in 0..nu {
+        tri.push([0, id(1, i), id(1, i + 1)]);
+        tri.push([id(nv - 1, i), south, id(nv - 1, i + 1)]);
+    }
+    for j in 1..nv - 1 {
+        for i in 0..nu {
+            tri.push([id(j, i), id(j + 1, i), id(j + 1, i + 1)]);
+            tri.push([id(j, i), id(j + 1, i + 1), id(j, i + 1)]);
+        }
+    }
+    TriMesh::new(pos, tri).expect("valid sphere")
+}
+
+#[test]
+fn principal_offsets_are_the_known_cell_pitch() {
+    for name in ["shelf", "facade", "fence", "shelf_sheared"] {
+        let ex = generate(name, 0).expect("example");
+        let a = analyze(&ex.mesh);
+        assert!(!ex.structure.cell_pitch.is_empty(), "{name} has a lattice");
+        for p in &ex.structure.cell_pitch {
+            let (best, err) = a
+                .principal
+                .iter()
+                .map(|v| (v, rel_err(v.offset_model, *p)))
+                .min_by(|x, y| x.1.total_cmp(&y.1))
+                .unwrap_or_else(|| panic!("{name}: no principal offset"));
+            println!(
+                "{name}: pitch {p:?} -> principal {:.5?} (support {}), relative error {:.2e}",
+                best.offset_model, best.support, err
+            );
+            // The pitch itself, not a multiple: 2× would be a 100% error.
+            assert!(
+                err <= 0.02,
+                "{name}: pitch {p:?}, closest principal {:?} is {:.1}% off",
+                best.offset_model,
+                100.0 * err
+            );
+        }
+        assert_eq!(a.repetition.kind, Repetition::Repetitive, "{name}: {}", a.repetition.summary);
+        // At most three principal offsets, pairwise at least θ = π/3 apart.
+        assert!(a.principal.len() <= 3);
+        for (i, u) in a.principal.iter().enumerate() {
+            for w in &a.principal[i + 1..] {
+                let c = (u.offset[0] * w.offset[0] + u.offset[1] * w.offset[1] + u.offset[2] * w.offset[2])
+                    / (u.length * w.length);
+                assert!(
+                    c.abs() <= 0.5 + 1e-9,
+                    "{name}: principal offsets {:?} and {:?} too close",
+                    u.offset,
+                    w.offset
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn shapes_without_repetition_get_the_no_repetition_verdict() {
+    for (name, mesh) in [("sphere", blob(0.0)), ("blob", blob(0.25))] {
+        let a = analyze(&mesh);
+        println!("{name}: {}", a.repetition.summary);
+        assert_eq!(a.repetition.kind, Repetition::NoRepetition, "{name}: {}", a.repetition.summary);
+        assert!(!a.repetition.summary.is_empty());
+    }
+}
+
+#[test]
+fn offsets_follow_rigid_translation_and_scaling_of_the_model() {
+    let ex = generate("fence", 0).expect("fence");
+    let a = analyze(&ex.mesh);
+    let mut moved = ex.mesh.clone();
+    for p in &mut moved.positions {
+        *p = [3.0 * p[0] + 10.0, 3.0 * p[1] - 4.0, 3.0 * p[2] + 0.5];
+    }
+    let b = analyze(&moved);
+    assert_eq!(a.principal.len(), b.principal.len());
+    for (u, v) in a.principal.iter().zip(&b.principal) {
+        // Normalised offsets are the same; model offsets scale by 3.
+        assert!(rel_err(u.offset, v.offset) < 1e-3, "{:?} vs {:?}", u.offset, v.offset);
+        assert!(rel_err(u.offset_model.map(|c| 3.0 * c), v.offset_model) < 1e-3);
+    }
+    assert!((b.normalisation.scale * 3.0 - a.normalisation.scale).abs() < 1e-9);
+}
+
+#[test]
+fn analysis_round_trips_through_json_and_options_default_from_empty_json() {
+    let ex = generate("shelf", 0).expect("shelf");
+    let a = analyze(&ex.mesh);
+    let text = serde_json::to_string(&a).expect("serialise");
+    let back: OffsetAnalysis = serde_json::from_str(&text).expect("deserialise");
+    assert_eq!(back.principal.len(), a.principal.len());
+    assert_eq!(back.repetition.kind, a.repetition.kind);
+    assert_eq!(serde_json::from_str::<OffsetOptions>("{}").expect("options"), OffsetOptions::default());
+    let bad = OffsetOptions { tau: -1.0, ..Default::default() };
+    assert!(analyze_offsets(&ex.mesh, &bad, &NoProgress).is_err());
+    assert!(analyze_offsets(&TriMesh::default(), &OffsetOptions::default(), &NoProgress).is_err());
+}
+
+#[test]
+fn the_offset_picture_is_written() {
+    let ex = generate("shelf_sheared", 0).expect("example");
+    let a = analyze(&ex.mesh);
+    let path = std::env::temp_dir().join(format!("motif-offsets-test-{}.png", std::process::id()));
+    motif_retarget::plot::plot_offsets(&a, "shelf_sheared", &path).expect("plot");
+    let bytes = std::fs::read(&path).expect("png written");
+    assert!(bytes.starts_with(b"\x89PNG"));
+    let _ = std::fs::remove_file(&path);
+}
+
+#[test]
+fn man_made_offsets_are_sparser_than_natural_ones() {
+    // The thesis's observation (4.3) on two generated shapes: a shelf (man-made) and a blob.
+    let o = SparsityOptions::default();
+    let (_, shelf) = model_sparsity(&generate("shelf", 0).expect("shelf").mesh, &o).expect("shelf");
+    let (_, blob) = model_sparsity(&blob(0.25), &o).expect("blob");
+    let k = o.taus.iter().position(|&t| (t - 0.15).abs() < 1e-12).expect("τ = 0.15");
+    let (s, b) = (&shelf[k], &blob[k]);
+    println!("share of offsets in 7% of bins at τ = 0.15: shelf {:.3}, blob {:.3}", s.shares[0], b.shares[0]);
+    assert!(s.shares[0] > b.shares[0]);
+    // Curves are monotone from 0 to 1.
+    for t in shelf.iter().chain(&blob) {
+        assert!(t.curve.windows(2).all(|w| w[1] >= w[0] - 1e-12));
+        assert!((t.curve[t.curve.len() - 1] - 1.0).abs() < 1e-9);
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Real data (shared/data): `MOTIF_DATA` or the first `shared/data` above the crate.
+
+fn data_dir() -> Option<PathBuf> {
+    if let Ok(d) = std::env::var("MOTIF_DATA") {
+        let p = PathBuf::from(d);
+        return p.join("MANIFEST.json").is_file().then_some(p);
+    }
+    let here = Path::new(env!("CARGO_MANIFEST_DIR"));
+    here.ancestors().map(|a| a.join("shared/data")).find(|p| p.join("MANIFEST.json").is_file())
+}
+
+/// A `trans:AXIS` claim of the manifest: axis index and pitch (model units).
+fn trans_claims(entry: &serde_json::Value) -> Vec<(usize, f64)> {
+    let claims = entry["symmetry_check"]["claims"].as_array().cloned().unwrap_or_default();
+    claims
+        .iter()
+        .filter_map(|c| {
+            let claim = c["claim"].as_str()?;
+            let axis = match claim {
+                "trans:x" => 0,
+                "trans:y" => 1,
+                "trans:z" => 2,
+                _ => return None,
+            };
+            Some((axis, c["pitch"].as_f64()?))
+        })
+        .collect()
+}
+
+/// How a principal offset meets a claim: `Some(1)` when one lies along the axis (within 10°) with
+/// the claimed length (within 5%); `Some(k)` when only `k ×` one does (`k ≤ 4`: the claim is in the
+/// lattice of the principal offsets but a finer period was found); `None` otherwise.
+fn meets(principal: &[PrincipalOffset], axis: usize, pitch: f64) -> Option<(usize, f64)> {
+    let along =
+        |p: &PrincipalOffset| p.offset_model[axis].abs() >= (10f64).to_radians().cos() * p.length_model;
+    for k in 1..=4 {
+        if let Some(p) = principal
+            .iter()
+            .filter(|p| along(p))
+            .find(|p| (k as f64 * p.length_model - pitch).abs() <= 0.05 * pitch)
+        {
+            return Some((k, p.length_model));
+        }
+    }
+    None
+}
+
+#[test]
+fn grid_models_of_the_shared_data() {
+    let Some(dir) = data_dir() else {
+        println!(
+            "skipping: no test data at {} (set MOTIF_DATA)",
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data").display()
+        );
+        return;
+    };
+    let text = std::fs::read_to_string(dir.join("MANIFEST.json")).expect("manifest");
+    let manifest: serde_json::Value = serde_json::from_str(&text).expect("manifest JSON");
+    let files = manifest["files"].as_array().cloned().unwrap_or_default();
+    println!(
+        "{:<36} {:>7} {:>6} {:>6}  {:<14} {:>7}  principal offsets (model units: |v| along [x y z], support)",
+        "model", "V", "dense", "feat", "verdict", "time s"
+    );
+    let mut failures = Vec::new();
+    for entry in files.iter().filter(|f| f["tags"].as_array().is_some_and(|t| t.iter().any(|x| x == "grid")))
+    {
+        let rel = entry["path"].as_str().expect("path");
+        let mesh = motif_core::io::read_mesh(&dir.join(rel)).expect("mesh loads");
+        let a = analyze(&mesh);
+        let principal: Vec<String> = a
+            .principal
+            .iter()
+            .map(|p| {
+                let m = p.offset_model;
+                format!(
+                    "{:.4} [{:.2} {:.2} {:.2}] s{}",
+                    p.length_model,
+                    m[0] / p.length_model,
+                    m[1] / p.length_model,
+                    m[2] / p.length_model,
+                    p.support
+                )
+            })
+            .collect();
+        let name = rel.rsplit('/').next().unwrap_or(rel);
+        println!(
+            "{:<36} {:>7} {:>6} {:>6}  {:<14} {:>7.2}  {}",
+            name,
+            mesh.positions.len(),
+            a.counts.dense,
+            a.counts.features,
+            format!("{:?}", a.repetition.kind),
+            a.timings.total,
+            principal.join("; ")
+        );
+        for (axis, pitch) in trans_claims(entry) {
+            let axis_name = ["x", "y", "z"][axis];
+            match meets(&a.principal, axis, pitch) {
+                Some((1, len)) => println!(
+                    "    claim trans:{axis_name}({pitch:.4}): found {len:.4} ({:+.1}%)",
+                    100.0 * (len / pitch - 1.0)
+                ),
+                Some((k, len)) => println!(
+                    "    claim trans:{axis_name}({pitch:.4}): found {len:.4}, the claim is {k} × it ({:+.1}%): a finer period",
+                    100.0 * (k as f64 * len / pitch - 1.0)
+                ),
+                None => {
+                    println!("    claim trans:{axis_name}({pitch:.4}): NOT FOUND");
+                    failures.push(format!("{name} trans:{axis_name}({pitch})"));
+                }
+            }
+        }
+        if let Ok(dir) = std::env::var("MOTIF_PLOT_DIR") {
+            let stem = name.split('.').next().unwrap_or(name);
+            let path = Path::new(&dir).join(format!("offsets-{stem}.png"));
+            motif_retarget::plot::plot_offsets(&a, name, &path).expect("plot");
+        }
+    }
+    assert!(failures.is_empty(), "manifest claims not met: {failures:?}");
+}
