@@ -4,6 +4,9 @@
 //!
 //! - `shelf_2x2/{offsets,dense}_total`: one-shot `retarget` of the generated 4×3 shelf by +2,+2
 //!   (sampling, SHOT, distances, graph cut, stitching);
+//! - `shelf_2x2/{offsets,dense}_reuse`: session built from the offset detection's features
+//!   (`RetargetSession::with_features`, thesis 4.2.2: descriptors "can be reused here") and one
+//!   solve: the retargeting step of the thesis's pipeline, without sampling and SHOT;
 //! - `shelf_2x2/{offsets,dense}_solve`: a solve of a prepared `RetargetSession` whose distance
 //!   cache is warm (graph cut and stitching: what an interactive resize costs);
 //! - `interactive/offsets_solve`: a 30 × 20-cell shelf grown by +5,+4 (30 labels, ~900 nodes).
@@ -19,6 +22,7 @@ use motif_core::geometry::Point3;
 use motif_core::mesh::TriMesh;
 use motif_core::procedural::{ShelfOptions, generate, shelf};
 use motif_core::progress::NoProgress;
+use motif_retarget::offsets::{OffsetOptions, prepare_features};
 use motif_retarget::retarget::{RetargetMethod, RetargetOptions, RetargetReport, RetargetSession, retarget};
 
 fn options(method: RetargetMethod) -> RetargetOptions {
@@ -79,12 +83,36 @@ fn shelf_2x2(c: &mut Criterion) {
             d.total_ms / o.total_ms.max(1e-9)
         );
     }
+    let features = prepare_features(&ex.mesh, &OffsetOptions::default(), &NoProgress).ok();
+    let reuse = |method| {
+        features.as_ref().and_then(|f| {
+            RetargetSession::with_features(&ex.mesh, f, &pitch, &options(method), &NoProgress)
+                .and_then(|mut s| s.retarget(steps, &NoProgress))
+                .ok()
+        })
+    };
+    if let (Some(o), Some(d)) = (reuse(RetargetMethod::Offsets), reuse(RetargetMethod::Dense)) {
+        print("shelf_2x2/offsets_reuse", &o.report);
+        print("shelf_2x2/dense_reuse", &d.report);
+        eprintln!(
+            "shelf_2x2 with the detection's features: offsets vs dense total {:.1}x faster",
+            d.report.total_ms / o.report.total_ms.max(1e-9)
+        );
+    }
     let mut g = c.benchmark_group("shelf_2x2");
     g.sample_size(10);
     for (name, method) in [("offsets", RetargetMethod::Offsets), ("dense", RetargetMethod::Dense)] {
         g.bench_function(format!("{name}_total"), |b| {
             b.iter(|| retarget(&ex.mesh, &pitch, black_box(steps), &options(method), &NoProgress))
         });
+        if let Some(f) = &features {
+            g.bench_function(format!("{name}_reuse"), |b| {
+                b.iter(|| {
+                    RetargetSession::with_features(&ex.mesh, f, &pitch, &options(method), &NoProgress)
+                        .and_then(|mut s| s.retarget(black_box(steps), &NoProgress))
+                })
+            });
+        }
         let Ok(mut session) = RetargetSession::new(&ex.mesh, &pitch, &options(method), &NoProgress) else {
             continue;
         };

@@ -12,7 +12,8 @@
 //! - [`mod@mrf_grid`]: the shared `mrf_grid_v1` problem format (load, validate, solve, generate).
 //!
 //! Modules so far: [`offsets`] (offset statistics: dominant and principal offsets, 4.2.1, 4.4),
-//! [`sparsity`] (the sparsity study, 4.3) and [`plot`] (their pictures).
+//! [`sparsity`] (the sparsity study, 4.3) and [`plot`] (their pictures), [`mod@retarget`]
+//! (offset-based retargeting, 4.2.2, 4.4, and the dense-MRF baseline, 4.5).
 
 #![warn(missing_docs)]
 

@@ -11,7 +11,7 @@ use motif_core::progress::NoProgress;
 use motif_core::sampling::sample_surface;
 use motif_retarget::retarget::{
     BoundaryMode, RetargetError, RetargetMethod, RetargetOptions, RetargetSession, Retargeted,
-    TriangleAssignment, retarget, retarget_dense,
+    TriangleAssignment, orient_offsets, retarget, retarget_dense,
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -159,7 +159,7 @@ impl CellGrid {
             }
         }
         let origin = add(add(scale(a, lo[0]), scale(b, lo[1])), scale(c, lo[2]));
-        let counts = std::array::from_fn(|k| ((hi[k] - lo[k]) - 1e-6).ceil().max(1.0) as usize);
+        let counts = std::array::from_fn(|k| ((hi[k] - lo[k]) - 0.01).ceil().max(1.0) as usize);
         CellGrid { origin, inv, vectors: [a, b, c], counts, num_real: pitch.len() }
     }
 
@@ -406,7 +406,7 @@ fn sheared_shelf_grows_in_canonical_space() {
     let ex = generate("shelf_sheared", 0).unwrap();
     let pitch = ex.structure.cell_pitch.clone();
     let out = run(&ex.mesh, &pitch, [1, 1, 0], RetargetMethod::Offsets);
-    let c = out.report.canonical_from_normalized;
+    let c = out.report.canonical_from_normalised;
     assert!(c[0][1].abs() > 0.1, "a shear must be undone: {c:?}");
     assert_eq!(out.report.output_voxels, [6, 5, 2]);
     assert_eq!(shelf_parts(&out.mesh, &pitch), shelf_expected(5, 4));
@@ -694,4 +694,50 @@ fn rigid_motion_of_the_input_moves_the_output() {
     eprintln!("rotated shelf +1,+1: distance to the rotated result {d:.2e}");
     assert!(d < 1e-6, "{d}");
     assert_eq!(shelf_parts(&out.mesh, &moved_pitch), shelf_expected(5, 4));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Tests: detection → retargeting, as the CLI glues them
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn detected_offsets_retarget_the_shelf_and_reuse_the_features() {
+    use motif_retarget::offsets::{OffsetOptions, analyze_features, prepare_features};
+    for name in ["shelf", "shelf_sheared", "fence", "facade"] {
+        let ex = generate(name, 0).unwrap();
+        let known = ex.structure.cell_pitch.clone();
+        let oo = OffsetOptions::default();
+        let features = prepare_features(&ex.mesh, &oo, &NoProgress).unwrap();
+        let analysis = analyze_features(&features, &oo, &NoProgress).unwrap();
+        // As the CLI glues them: growth at the +x / +y ends.
+        let detected = orient_offsets(&analysis.principal.iter().map(|p| p.offset_model).collect::<Vec<_>>());
+        eprintln!("{name}: known {known:?}, detected {detected:?}");
+        let options = RetargetOptions { shot_radius: oo.shot_radius, ..Default::default() };
+        let mut session =
+            RetargetSession::with_features(&ex.mesh, &features, &detected, &options, &NoProgress).unwrap();
+        let steps: [i32; 3] = std::array::from_fn(|i| if i < detected.len() { 1 } else { 0 });
+        let out = session.retarget(steps, &NoProgress).unwrap();
+        let r = &out.report;
+        let tol = 0.01 * min_pitch(&known);
+        // Cells are checked on the known lattice (the detected one may be ± or a different basis).
+        let cells = check_cells(&ex.mesh, &out.mesh, &known, tol);
+        eprintln!(
+            "{name} +1 per detected offset, features reused: {:?} -> {:?}, {} nodes, {} labels, graph cut {:.2} ms, total {:.1} ms (sampling {:.1}, SHOT {:.1}); {} cells, {} broken (worst {:.1e})",
+            r.input_voxels,
+            r.output_voxels,
+            r.nodes,
+            r.labels,
+            r.graph_cut_ms,
+            r.total_ms,
+            r.stages.sampling_ms,
+            r.stages.descriptors_ms,
+            cells.cells,
+            cells.broken,
+            cells.worst_intact
+        );
+        let expected: usize = (0..known.len()).map(|i| r.input_voxels[i] + 1).product();
+        assert_eq!(detected.len(), known.len(), "{name}");
+        assert_eq!((cells.cells, cells.broken), (expected, 0), "{name}");
+        assert_eq!(r.stages.sampling_ms, 0.0, "features are reused");
+    }
 }

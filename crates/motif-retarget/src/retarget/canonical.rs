@@ -6,7 +6,7 @@
 //!   that its largest dimension spans [−1, 1] (thesis 4.3; the offset detection normalises the
 //!   same way, so the thesis's lengths 0.02, 0.06, 0.1, 0.2 apply here);
 //! - **canonical** space: normalised space expressed in the basis of the unit principal offsets
-//!   `dᵢ = vᵢ / |vᵢ|` (thesis 4.4: "collecting all 3 normalized principle offset vectors into a 3D
+//!   `dᵢ = vᵢ / |vᵢ|` (thesis 4.4: "collecting all 3 normalised principle offset vectors into a 3D
 //!   transformation matrix"). With `B = [d₁ d₂ d₃]` (columns), `canonical = B⁻¹ · normalised`, so
 //!   the offset `vᵢ` becomes `|vᵢ| eᵢ` and the lattice of cells becomes axis-aligned boxes of size
 //!   `|v₁| × |v₂| × |v₃|`. For orthogonal offsets `B` is orthonormal (a rotation, possibly with
@@ -19,41 +19,20 @@ use motif_core::geometry::{Mat4, Point3, cross, dot, norm, normalize, scale, sub
 use motif_core::mesh::TriMesh;
 
 use super::error::{RetargetError, RetargetResult};
+pub use crate::offsets::Normalisation;
 
-/// The uniform scaling that maps model units to normalised units: `normalised = scale · (model −
-/// center)`, so that the largest bounding-box dimension spans [−1, 1].
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct Normalization {
-    /// Centre of the model's bounding box, model units.
-    pub center: Point3,
-    /// `2 / (largest bounding-box dimension)`, normalised units per model unit.
-    pub scale: f64,
+/// The normalisation of a mesh's bounding box (the offset detection's [`Normalisation`], so that
+/// both stages share normalised units).
+pub(crate) fn normalisation_of(mesh: &TriMesh) -> RetargetResult<Normalisation> {
+    let bb = mesh.aabb().ok_or(RetargetError::DegenerateMesh)?;
+    Normalisation::from_bounds(bb.min, bb.max).map_err(|_| RetargetError::DegenerateMesh)
 }
 
-impl Normalization {
-    /// The normalisation of a mesh's bounding box.
-    pub fn of_mesh(mesh: &TriMesh) -> RetargetResult<Normalization> {
-        let bb = mesh.aabb().ok_or(RetargetError::DegenerateMesh)?;
-        let e = bb.extent();
-        let largest = e[0].max(e[1]).max(e[2]);
-        if !(largest > 0.0 && largest.is_finite()) {
-            return Err(RetargetError::DegenerateMesh);
-        }
-        Ok(Normalization { center: bb.center(), scale: 2.0 / largest })
-    }
-
-    /// A model-space point in normalised space.
-    #[inline]
-    pub fn apply(&self, p: Point3) -> Point3 {
-        scale(sub(p, self.center), self.scale)
-    }
-
-    /// `normalized_from_model` as a row-major 4×4 matrix.
-    pub fn matrix(&self) -> Mat4 {
-        let s = self.scale;
-        let c = self.center;
-        [[s, 0.0, 0.0, -s * c[0]], [0.0, s, 0.0, -s * c[1]], [0.0, 0.0, s, -s * c[2]], [0.0, 0.0, 0.0, 1.0]]
-    }
+/// `normalised_from_model` as a row-major 4×4 matrix.
+pub(crate) fn normalised_from_model(n: &Normalisation) -> Mat4 {
+    let s = n.scale;
+    let c = n.centre;
+    [[s, 0.0, 0.0, -s * c[0]], [0.0, s, 0.0, -s * c[1]], [0.0, 0.0, s, -s * c[2]], [0.0, 0.0, 0.0, 1.0]]
 }
 
 /// A 3×3 matrix, row-major.
@@ -64,9 +43,9 @@ pub type Mat3 = [[f64; 3]; 3];
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Lattice {
     /// Model → normalised space.
-    pub normalization: Normalization,
+    pub normalisation: Normalisation,
     /// `B⁻¹`: normalised → canonical (linear).
-    pub canonical_from_normalized: Mat3,
+    pub canonical_from_normalised: Mat3,
     /// Cell edge length along each canonical axis, normalised units (`|vᵢ|`, or the dummy length).
     pub pitch: [f64; 3],
     /// Translation of one step along each axis, model units (`vᵢ` itself for principal offsets).
@@ -85,7 +64,7 @@ impl Lattice {
     /// The lattice of the principal offsets `offsets` (model units, 1–3 vectors), completed by
     /// dummy directions of normalised length `dummy_length`.
     pub fn from_offsets(
-        normalization: Normalization,
+        normalisation: Normalisation,
         offsets: &[Point3],
         dummy_length: f64,
     ) -> RetargetResult<Lattice> {
@@ -103,7 +82,7 @@ impl Lattice {
             if !o.iter().all(|c| c.is_finite()) {
                 return Err(bad(format!("offset {i} = {o:?} is not finite")));
             }
-            let len = norm(*o) * normalization.scale;
+            let len = norm(*o) * normalisation.scale;
             // A cell smaller than 10⁻⁶ of the normalised model is certainly a mistake (and would
             // need more than 10¹² voxels).
             if len < 1e-6 {
@@ -166,7 +145,7 @@ impl Lattice {
             dirs.push(d3);
         }
         for a in num_active..3 {
-            step_model[a] = scale(dirs[a], dummy_length / normalization.scale);
+            step_model[a] = scale(dirs[a], dummy_length / normalisation.scale);
         }
         // B has the unit directions as columns.
         let b: Mat3 = [
@@ -174,18 +153,18 @@ impl Lattice {
             [dirs[0][1], dirs[1][1], dirs[2][1]],
             [dirs[0][2], dirs[1][2], dirs[2][2]],
         ];
-        let canonical_from_normalized =
+        let canonical_from_normalised =
             invert3(&b).ok_or_else(|| bad("the principal offsets do not span a frame".into()))?;
-        Ok(Lattice { normalization, canonical_from_normalized, pitch, step_model, num_active })
+        Ok(Lattice { normalisation, canonical_from_normalised, pitch, step_model, num_active })
     }
 
     /// The dense baseline of thesis 4.5: regular axis-aligned offsets of length `spacing`
     /// (normalised units) along the world axes, no canonical map.
-    pub fn regular(normalization: Normalization, spacing: f64) -> Lattice {
-        let h = spacing / normalization.scale;
+    pub fn regular(normalisation: Normalisation, spacing: f64) -> Lattice {
+        let h = spacing / normalisation.scale;
         Lattice {
-            normalization,
-            canonical_from_normalized: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            normalisation,
+            canonical_from_normalised: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
             pitch: [spacing; 3],
             step_model: [[h, 0.0, 0.0], [0.0, h, 0.0], [0.0, 0.0, h]],
             num_active: 3,
@@ -195,13 +174,19 @@ impl Lattice {
     /// A model-space point in canonical space.
     #[inline]
     pub fn canonical(&self, p: Point3) -> Point3 {
-        mul3(&self.canonical_from_normalized, self.normalization.apply(p))
+        mul3(&self.canonical_from_normalised, self.normalisation.to_normalised(p))
+    }
+
+    /// A normalised-space point in canonical space.
+    #[inline]
+    pub fn canonical_of_normalised(&self, p: Point3) -> Point3 {
+        mul3(&self.canonical_from_normalised, p)
     }
 
     /// A normalised-space vector in canonical space.
     #[inline]
     pub fn canonical_vector(&self, v: Point3) -> Point3 {
-        mul3(&self.canonical_from_normalized, v)
+        mul3(&self.canonical_from_normalised, v)
     }
 
     /// The model-space translation of the integer step vector `k`.
@@ -247,8 +232,8 @@ pub fn invert3(m: &Mat3) -> Option<Mat3> {
 mod tests {
     use super::*;
 
-    fn unit_norm() -> Normalization {
-        Normalization { center: [0.0; 3], scale: 1.0 }
+    fn unit_norm() -> Normalisation {
+        Normalisation { centre: [0.0; 3], scale: 1.0 }
     }
 
     #[test]
@@ -292,10 +277,10 @@ mod tests {
     fn normalisation_maps_the_largest_dimension_to_minus_one_one() {
         let m =
             TriMesh::new(vec![[1.0, 2.0, 3.0], [5.0, 3.0, 3.5], [2.0, 2.5, 4.0]], vec![[0, 1, 2]]).unwrap();
-        let n = Normalization::of_mesh(&m).unwrap();
-        assert!((n.apply([1.0, 2.0, 3.0])[0] + 1.0).abs() < 1e-12);
-        assert!((n.apply([5.0, 2.0, 3.0])[0] - 1.0).abs() < 1e-12);
-        let p = motif_core::geometry::transform_point(&n.matrix(), [5.0, 3.0, 3.5]);
-        assert!(motif_core::geometry::dist(p, n.apply([5.0, 3.0, 3.5])) < 1e-12);
+        let n = normalisation_of(&m).unwrap();
+        assert!((n.to_normalised([1.0, 2.0, 3.0])[0] + 1.0).abs() < 1e-12);
+        assert!((n.to_normalised([5.0, 2.0, 3.0])[0] - 1.0).abs() < 1e-12);
+        let p = motif_core::geometry::transform_point(&normalised_from_model(&n), [5.0, 3.0, 3.5]);
+        assert!(motif_core::geometry::dist(p, n.to_normalised([5.0, 3.0, 3.5])) < 1e-12);
     }
 }

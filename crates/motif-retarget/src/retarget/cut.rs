@@ -174,7 +174,7 @@ pub(crate) fn cut_at_voxel_faces(mesh: &TriMesh, lattice: &Lattice, grid: &Voxel
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::retarget::canonical::Normalization;
+    use crate::retarget::canonical::Normalisation;
 
     #[test]
     fn a_big_quad_is_cut_into_cells_without_changing_its_area() {
@@ -184,7 +184,7 @@ mod tests {
             vec![[0, 1, 2], [0, 2, 3]],
         )
         .unwrap();
-        let n = Normalization { center: [0.0; 3], scale: 1.0 };
+        let n = Normalisation { centre: [0.0; 3], scale: 1.0 };
         let lattice = Lattice::from_offsets(n, &[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], 0.2).unwrap();
         let grid = VoxelGrid::covering(&lattice, &mesh.positions);
         assert_eq!(grid.dims, [3, 2, 1]);

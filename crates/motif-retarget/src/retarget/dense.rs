@@ -9,17 +9,17 @@
 
 use motif_core::geometry::Point3;
 
-use super::canonical::{Lattice, Normalization};
+use super::canonical::{Lattice, Normalisation};
 
 /// The regular lattice of the baseline.
-pub(crate) fn dense_lattice(normalization: Normalization, spacing: f64) -> Lattice {
-    Lattice::regular(normalization, spacing)
+pub(crate) fn dense_lattice(normalisation: Normalisation, spacing: f64) -> Lattice {
+    Lattice::regular(normalisation, spacing)
 }
 
 /// Regular steps along the world axes that grow the model by about as much as `steps` principal
 /// offsets would.
 pub(crate) fn dense_steps(
-    normalization: &Normalization,
+    normalisation: &Normalisation,
     principal_offsets: &[Point3],
     steps: [i32; 3],
     spacing: f64,
@@ -30,7 +30,7 @@ pub(crate) fn dense_steps(
             g[a] += s as f64 * o[a];
         }
     }
-    g.map(|c| (c * normalization.scale / spacing).round() as i64)
+    g.map(|c| (c * normalisation.scale / spacing).round() as i64)
 }
 
 #[cfg(test)]
@@ -39,7 +39,7 @@ mod tests {
 
     #[test]
     fn steps_follow_the_growth_vector() {
-        let n = Normalization { center: [0.0; 3], scale: 2.0 };
+        let n = Normalisation { centre: [0.0; 3], scale: 2.0 };
         let s = dense_steps(&n, &[[0.42, 0.0, 0.0], [0.15, 0.37, 0.0]], [1, -1, 0], 0.1);
         assert_eq!(s, [5, -7, 0]);
     }

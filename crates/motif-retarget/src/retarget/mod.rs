@@ -9,7 +9,9 @@
 //!    v₂/|v₂| v₃/|v₃|]`, where the offsets are the coordinate axes (4.4, Fig. 4.7). Fewer than three
 //!    offsets are completed by orthogonal dummy directions of length 0.2 (4.4).
 //! 2. **Voxelise** with cells equal to the offsets, origin at the minimum corner of the canonical
-//!    bounding box: `U_in × V_in × W_in` input voxels; the retargeting space Ω has
+//!    bounding box: `U_in × V_in × W_in` input voxels (extents are rounded up to whole cells, with
+//!    a slack of 1% of a cell so that slightly inaccurate detected offsets add no sliver voxels);
+//!    the retargeting space Ω has
 //!    `(U_in + U) × (V_in + V) × (W_in + W)` voxels, the graph's nodes.
 //! 3. **Describe** every input voxel by G(x), the set of SHOT descriptors (world frame, radius
 //!    0.2) of the features on its triangles (features: Poisson-disc spacing 0.06 over a dense cloud
@@ -20,7 +22,9 @@
 //!
 //! [`RetargetSession`] does steps 1–3 once and solves for any number of step vectors
 //! (interactive resizing; Hausdorff distances are cached across solves); [`retarget`] and
-//! [`retarget_dense`] are the one-shot forms. Everything is deterministic for a seed.
+//! [`retarget_dense`] are the one-shot forms. [`RetargetSession::with_features`] reuses the
+//! features and descriptors of the offset detection ([`crate::offsets`]) instead of sampling
+//! again. Everything is deterministic for a seed.
 //!
 //! # How the thesis is read
 //! Where the text leaves a choice, this is what the code does (and why):
@@ -86,8 +90,9 @@ use motif_core::progress::Progress;
 use serde::{Deserialize, Serialize};
 
 use crate::alpha_expansion::{AlphaExpansionOptions, Termination};
+use crate::offsets::OffsetFeatures;
 
-pub use canonical::{Mat3, Normalization};
+pub use canonical::{Mat3, Normalisation};
 pub use error::{RetargetError, RetargetResult};
 
 use canonical::Lattice;
@@ -334,10 +339,10 @@ pub struct RetargetReport {
     pub output_boundary_edges: usize,
     /// Vertices merged by seam welding.
     pub welded_vertices: usize,
-    /// `normalized_from_model`, row-major 4×4.
-    pub normalized_from_model: Mat4,
-    /// `canonical_from_normalized`, row-major 3×3 (identity for the dense baseline).
-    pub canonical_from_normalized: Mat3,
+    /// `normalised_from_model`, row-major 4×4.
+    pub normalised_from_model: Mat4,
+    /// `canonical_from_normalised`, row-major 3×3 (identity for the dense baseline).
+    pub canonical_from_normalised: Mat3,
 }
 
 /// The result of retargeting.
@@ -385,6 +390,35 @@ impl RetargetSession {
         options: &RetargetOptions,
         progress: &dyn Progress,
     ) -> RetargetResult<RetargetSession> {
+        Self::build(mesh, principal_offsets, None, options, progress)
+    }
+
+    /// [`RetargetSession::new`] reusing the features and SHOT descriptors that the offset
+    /// detection prepared for the same mesh ([`crate::offsets::prepare_features`]), as thesis
+    /// 4.2.2 suggests ("the pairwise feature distances have already been computed in the previous
+    /// step … and can be reused here"): no sampling and (almost) no SHOT here. The sampling options
+    /// of `options` are then unused; keep `shot_radius` equal to the detection's.
+    ///
+    /// # Errors
+    /// As [`RetargetSession::new`], and [`RetargetError::InvalidOption`] when `features` were
+    /// prepared for a mesh with another bounding box.
+    pub fn with_features(
+        mesh: &TriMesh,
+        features: &OffsetFeatures,
+        principal_offsets: &[Point3],
+        options: &RetargetOptions,
+        progress: &dyn Progress,
+    ) -> RetargetResult<RetargetSession> {
+        Self::build(mesh, principal_offsets, Some(features), options, progress)
+    }
+
+    fn build(
+        mesh: &TriMesh,
+        principal_offsets: &[Point3],
+        features: Option<&OffsetFeatures>,
+        options: &RetargetOptions,
+        progress: &dyn Progress,
+    ) -> RetargetResult<RetargetSession> {
         let t0 = Instant::now();
         options.validate()?;
         mesh.validate()?;
@@ -392,12 +426,24 @@ impl RetargetSession {
             return Err(RetargetError::NoFaces { vertices: mesh.positions.len() });
         }
         progress.start("voxelize", 0);
-        let normalization = Normalization::of_mesh(mesh)?;
+        let normalisation = canonical::normalisation_of(mesh)?;
+        if let Some(f) = features {
+            let (a, b) = (&f.normalisation, &normalisation);
+            let moved = motif_core::geometry::dist(a.centre, b.centre) * b.scale;
+            if moved > 1e-9 || (a.scale / b.scale - 1.0).abs() > 1e-9 {
+                return Err(RetargetError::InvalidOption {
+                    name: "features",
+                    message: "the features were prepared for a mesh with another bounding box; \
+                              prepare them from the mesh being retargeted"
+                        .into(),
+                });
+            }
+        }
         // Always validated, also for the baseline, which needs them for its step counts.
-        let offsets_lattice = Lattice::from_offsets(normalization, principal_offsets, options.dummy_length)?;
+        let offsets_lattice = Lattice::from_offsets(normalisation, principal_offsets, options.dummy_length)?;
         let lattice = match options.method {
             RetargetMethod::Offsets => offsets_lattice,
-            RetargetMethod::Dense => dense::dense_lattice(normalization, options.dense_spacing),
+            RetargetMethod::Dense => dense::dense_lattice(normalisation, options.dense_spacing),
         };
         // Count the input voxels before allocating anything per voxel.
         let dims = input_dims(&lattice, mesh);
@@ -420,18 +466,36 @@ impl RetargetSession {
         let voxelize_ms = t0.elapsed().as_secs_f64() * 1e3;
 
         let t1 = Instant::now();
-        let mut normalized = mesh.clone();
-        for p in &mut normalized.positions {
-            *p = normalization.apply(*p);
-        }
-        let params = DescriptorParams {
-            sample_spacing: options.sample_spacing,
-            feature_spacing: options.feature_spacing,
-            shot_radius: options.shot_radius,
-            seed: options.seed,
+        let (descriptors, sampling_ms) = match features {
+            Some(f) => {
+                let mut occupied = vec![false; grid.len()];
+                for &v in &tri_voxel {
+                    occupied[v as usize] = true;
+                }
+                let (d, _) = voxels::describe_from_features(
+                    f,
+                    &lattice,
+                    &grid,
+                    occupied,
+                    options.shot_radius,
+                    progress,
+                )?;
+                (d, 0.0)
+            }
+            None => {
+                let mut normalised = mesh.clone();
+                for p in &mut normalised.positions {
+                    *p = normalisation.to_normalised(*p);
+                }
+                let params = DescriptorParams {
+                    sample_spacing: options.sample_spacing,
+                    feature_spacing: options.feature_spacing,
+                    shot_radius: options.shot_radius,
+                    seed: options.seed,
+                };
+                voxels::describe_voxels(&normalised, &tri_voxel, grid.len(), &params, progress)?
+            }
         };
-        let (descriptors, sampling_ms) =
-            voxels::describe_voxels(&normalized, &tri_voxel, grid.len(), &params, progress)?;
         let descriptors_ms = t1.elapsed().as_secs_f64() * 1e3 - sampling_ms;
         Ok(RetargetSession {
             options: options.clone(),
@@ -458,8 +522,8 @@ impl RetargetSession {
     }
 
     /// The model → normalised-space similarity.
-    pub fn normalization(&self) -> Normalization {
-        self.lattice.normalization
+    pub fn normalisation(&self) -> Normalisation {
+        self.lattice.normalisation
     }
 
     /// The options the session was built with.
@@ -484,7 +548,7 @@ impl RetargetSession {
         let grid_steps_wide: [i64; 3] = match self.options.method {
             RetargetMethod::Offsets => steps.map(i64::from),
             RetargetMethod::Dense => dense::dense_steps(
-                &self.lattice.normalization,
+                &self.lattice.normalisation,
                 &self.principal_offsets,
                 steps,
                 self.options.dense_spacing,
@@ -554,7 +618,7 @@ impl RetargetSession {
             .filter(|&a| a < self.lattice.num_active)
             .map(|a| self.lattice.pitch[a])
             .fold(f64::INFINITY, f64::min);
-        let weld_tolerance = self.options.weld_tolerance * min_pitch / self.lattice.normalization.scale;
+        let weld_tolerance = self.options.weld_tolerance * min_pitch / self.lattice.normalisation.scale;
         let stitched = stitch::stitch(
             &self.mesh,
             &self.tri_voxel,
@@ -607,8 +671,8 @@ impl RetargetSession {
             output_components: components,
             output_boundary_edges: boundary_edges,
             welded_vertices: stitched.welded,
-            normalized_from_model: self.lattice.normalization.matrix(),
-            canonical_from_normalized: self.lattice.canonical_from_normalized,
+            normalised_from_model: canonical::normalised_from_model(&self.lattice.normalisation),
+            canonical_from_normalised: self.lattice.canonical_from_normalised,
         };
         Ok(Retargeted {
             mesh: stitched.mesh,
@@ -628,9 +692,26 @@ fn input_dims(lattice: &Lattice, mesh: &TriMesh) -> [usize; 3] {
     VoxelGrid::covering(lattice, &mesh.positions).dims
 }
 
+/// The offsets flipped where needed so that each one's largest-magnitude component is positive.
+///
+/// The sign of an offset chooses which end of the model grows: copies are added at the `+vᵢ` end
+/// while the `−vᵢ` end stays in place. The offset detection reports offsets in an arbitrary half
+/// space (e.g. `(0, −3.2, 0)` for a facade's floors); orienting them first makes a facade grow
+/// upwards and a shelf to the right, keeping the model's minimum corner fixed.
+pub fn orient_offsets(offsets: &[Point3]) -> Vec<Point3> {
+    offsets
+        .iter()
+        .map(|v| {
+            let k = (0..3).fold(0, |k, a| if v[a].abs() > v[k].abs() { a } else { k });
+            if v[k] < 0.0 { [-v[0], -v[1], -v[2]] } else { *v }
+        })
+        .collect()
+}
+
 /// Resizes `mesh` by `steps[i]` copies of `principal_offsets[i]` (model units, 1–3 vectors;
 /// negative steps shrink, steps along missing offsets must be 0), with the method of
-/// `options.method`. One-shot form of [`RetargetSession`].
+/// `options.method`. Copies are added (removed) at the `+vᵢ` end; see [`orient_offsets`].
+/// One-shot form of [`RetargetSession`].
 ///
 /// # Errors
 /// See [`RetargetSession::new`] and [`RetargetSession::retarget`].

@@ -32,6 +32,7 @@ use rayon::prelude::*;
 
 use super::canonical::Lattice;
 use super::error::RetargetResult;
+use crate::offsets::OffsetFeatures;
 
 /// A regular grid of voxels in canonical space.
 #[derive(Debug, Clone, PartialEq)]
@@ -44,8 +45,10 @@ pub(crate) struct VoxelGrid {
     pub dims: [usize; 3],
 }
 
-/// Relative slack when counting voxels: an extent of 5.0000001 cells is 5 cells.
-const COUNT_SLACK: f64 = 1e-6;
+/// Slack when counting voxels, in cells: an extent of up to 5.01 cells is 5 cells, whatever lies
+/// beyond the last voxel face is assigned to the last voxel. Detected offsets are accurate to about
+/// 10⁻⁴ of a cell and carry tiny skews, which would otherwise add sliver voxels at the ends.
+const COUNT_SLACK: f64 = 0.01;
 
 impl VoxelGrid {
     /// The grid covering the canonical bounding box of `points` (model space).
@@ -166,7 +169,7 @@ impl VoxelDescriptors {
 /// the voxel of the triangle each feature lies on. Reports progress in the stages "sampling" and
 /// "SHOT descriptors"; returns the descriptors and the time spent sampling (ms).
 pub(crate) fn describe_voxels(
-    normalized: &TriMesh,
+    normalised: &TriMesh,
     tri_voxel: &[u32],
     num_voxels: usize,
     params: &DescriptorParams,
@@ -179,7 +182,7 @@ pub(crate) fn describe_voxels(
     }
     progress.start("sampling", 0);
     let dense = poisson_disc_surface(
-        normalized,
+        normalised,
         &Constraints::default(),
         &PoissonDiscOptions {
             spacing: Spacing::Radius(params.sample_spacing),
@@ -220,11 +223,11 @@ pub(crate) fn describe_voxels(
     }
     const MAX_CENTROIDS: usize = 16;
     let mut centroids_added = vec![0usize; num_voxels];
-    let face_normals = normalized.face_normals();
+    let face_normals = normalised.face_normals();
     for (f, &v) in tri_voxel.iter().enumerate() {
         let v = v as usize;
         if occupied[v] && !has_key[v] && !has_sample[v] && centroids_added[v] < MAX_CENTROIDS {
-            let [a, b, c] = normalized.corners(f);
+            let [a, b, c] = normalised.corners(f);
             points.push(scale(add(add(a, b), c), 1.0 / 3.0));
             normals.push(face_normals[f]);
             point_voxel.push(v as u32);
@@ -279,6 +282,102 @@ pub(crate) fn describe_voxels(
     out.start = count;
     out.num_valid = total;
     Ok((out, sampling_ms))
+}
+
+/// The voxel sets G(x) from features prepared by the offset detection
+/// ([`crate::offsets::prepare_features`]; thesis 4.2.2: "the pairwise feature distances have
+/// already been computed in the previous step … and can be reused here"). Features carry no
+/// triangle, so each goes to the voxel containing its position probed 10⁻⁶ cells against its
+/// normal (the same rule as for triangles). Occupied voxels without a feature get their dense
+/// points as keypoints, described with the detection's dense cloud and kd-tree.
+pub(crate) fn describe_from_features(
+    features: &OffsetFeatures,
+    lattice: &Lattice,
+    grid: &VoxelGrid,
+    occupied: Vec<bool>,
+    shot_radius: f64,
+    progress: &dyn Progress,
+) -> RetargetResult<(VoxelDescriptors, f64)> {
+    let t0 = std::time::Instant::now();
+    let min_pitch = grid.pitch[0].min(grid.pitch[1]).min(grid.pitch[2]);
+    let delta = 1e-6 * min_pitch;
+    let voxel_of_point = |i: usize| {
+        let p = sub(features.dense[i], scale(features.dense_normals[i], delta));
+        grid.linear(grid.voxel_of(lattice.canonical_of_normalised(p)))
+    };
+    let n = grid.len();
+    // (voxel, descriptor row source): reused rows first, then fallback keypoints.
+    let mut entries: Vec<(usize, usize)> = Vec::new();
+    let mut has_key = vec![false; n];
+    for (i, &d) in features.features.iter().enumerate() {
+        if !features.valid[i] {
+            continue;
+        }
+        let v = voxel_of_point(d);
+        if occupied[v] {
+            entries.push((v, i));
+            has_key[v] = true;
+        }
+    }
+    let fallback: Vec<usize> = (0..features.dense.len())
+        .filter(|&i| {
+            let v = voxel_of_point(i);
+            occupied[v] && !has_key[v]
+        })
+        .collect();
+    let extra = if fallback.is_empty() {
+        None
+    } else {
+        Some(compute_shot_with_tree(
+            &features.tree,
+            &features.dense,
+            &features.dense_normals,
+            &fallback,
+            &ShotOptions { radius: shot_radius, frame: ShotFrame::World, ..Default::default() },
+            progress,
+        )?)
+    };
+    let mut count = vec![0u32; n + 1];
+    for &(v, _) in &entries {
+        count[v + 1] += 1;
+    }
+    if let Some(extra) = &extra {
+        for (j, &k) in fallback.iter().enumerate() {
+            if extra.valid[j] {
+                count[voxel_of_point(k) + 1] += 1;
+            }
+        }
+    }
+    for v in 0..n {
+        count[v + 1] += count[v];
+    }
+    let total = count[n] as usize;
+    let mut rows = vec![0f32; total * SHOT_LEN];
+    let mut fill = count.clone();
+    let mut put = |v: usize, d: &[f32]| {
+        let r = fill[v] as usize;
+        rows[r * SHOT_LEN..(r + 1) * SHOT_LEN].copy_from_slice(d);
+        fill[v] += 1;
+    };
+    for &(v, i) in &entries {
+        put(v, &features.descriptors[i * SHOT_LEN..(i + 1) * SHOT_LEN]);
+    }
+    if let Some(extra) = &extra {
+        for (j, &k) in fallback.iter().enumerate() {
+            if let (true, Some(d)) = (extra.valid[j], extra.descriptor(j)) {
+                put(voxel_of_point(k), d);
+            }
+        }
+    }
+    let out = VoxelDescriptors {
+        rows,
+        start: count,
+        occupied,
+        num_samples: features.dense.len(),
+        num_keypoints: entries.len() + fallback.len(),
+        num_valid: total,
+    };
+    Ok((out, t0.elapsed().as_secs_f64() * 1e3))
 }
 
 /// Distance given to two non-empty voxels when one of them has no valid descriptor: √2, the
