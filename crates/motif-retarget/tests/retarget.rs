@@ -655,6 +655,37 @@ fn errors_are_reported() {
 // ---------------------------------------------------------------------------------------------
 
 #[test]
+fn options_and_reports_round_trip_through_json() {
+    let o = RetargetOptions {
+        method: RetargetMethod::Dense,
+        assignment: TriangleAssignment::Cut,
+        ..Default::default()
+    };
+    let json = serde_json::to_string(&o).unwrap();
+    assert_eq!(serde_json::from_str::<RetargetOptions>(&json).unwrap(), o);
+    // Missing fields take their defaults.
+    assert_eq!(serde_json::from_str::<RetargetOptions>("{}").unwrap(), RetargetOptions::default());
+    let ex = generate("fence", 0).unwrap();
+    let out =
+        retarget(&ex.mesh, &ex.structure.cell_pitch, [1, 0, 0], &RetargetOptions::default(), &NoProgress)
+            .unwrap();
+    let v = serde_json::to_value(&out.report).unwrap();
+    for key in [
+        "nodes",
+        "labels",
+        "edges",
+        "energy",
+        "cycles",
+        "graph_cut_ms",
+        "total_ms",
+        "stages",
+        "output_triangles",
+    ] {
+        assert!(v.get(key).is_some(), "{key}");
+    }
+}
+
+#[test]
 fn session_reuses_descriptors_and_is_deterministic() {
     let ex = generate("shelf", 0).unwrap();
     let pitch = ex.structure.cell_pitch.clone();
