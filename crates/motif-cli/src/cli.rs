@@ -58,6 +58,8 @@ pub enum Command {
     /// Symmetries: detect them automatically, or check an annotation against a mesh.
     #[command(subcommand)]
     Symmetry(SymmetryCommand),
+    /// Resize a model along its own repetitive structure (thesis 4.2.2): offsets, MRF, graph cut.
+    Retarget(RetargetArgs),
     /// Dominant and principal translational offsets of a model (thesis 4.2.1, 4.4).
     Offsets(OffsetsArgs),
     /// The offset-sparsity study (thesis 4.3): how concentrated offsets are, per category.
@@ -488,6 +490,39 @@ pub struct SparsityArgs {
     /// Cumulative distributions per category and τ (PNG).
     #[arg(long, value_name = "PNG")]
     pub plot: Option<PathBuf>,
+    #[command(flatten)]
+    pub json: JsonArg,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum, Default, PartialEq)]
+pub enum RetargetMethodArg {
+    /// Voxels and labels from the detected principal offsets (thesis 4.2.2).
+    #[default]
+    Offsets,
+    /// The dense-MRF baseline: regular offsets of 0.1 (thesis 4.5).
+    Dense,
+}
+
+#[derive(Debug, Args)]
+#[command(group(clap::ArgGroup::new("size").required(true).args(["steps", "target_size"])))]
+pub struct RetargetArgs {
+    /// Input mesh.
+    pub mesh: PathBuf,
+    /// Output mesh.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Principal offsets to add per direction, as U,V,W (negative shrinks), e.g. 2,1,0.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub steps: Option<Vec<i32>>,
+    /// Desired bounding-box size X,Y,Z in model units; rounded to whole offsets.
+    #[arg(long, value_delimiter = ',')]
+    pub target_size: Option<Vec<f64>>,
+    /// Offsets (detected) or the dense baseline.
+    #[arg(long, value_enum, default_value_t)]
+    pub method: RetargetMethodArg,
+    /// When the model has no repetition, scale it to --target-size instead of failing.
+    #[arg(long)]
+    pub plain_resize: bool,
     #[command(flatten)]
     pub json: JsonArg,
 }

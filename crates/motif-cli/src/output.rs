@@ -47,6 +47,20 @@ pub fn exit_code(err: &anyhow::Error) -> u8 {
                 _ => 2,
             };
         }
+        if let Some(e) = cause.downcast_ref::<motif_retarget::retarget::RetargetError>() {
+            use motif_retarget::retarget::RetargetError as E;
+            return match e {
+                E::Core(c) => {
+                    if c.is_bad_input() {
+                        2
+                    } else {
+                        1
+                    }
+                }
+                E::GraphCut(_) => 1,
+                _ => 2,
+            };
+        }
         if let Some(e) = cause.downcast_ref::<motif_retarget::offsets::OffsetsError>() {
             use motif_retarget::offsets::OffsetsError as E;
             return match e {

@@ -245,7 +245,7 @@ fn align_recovers_a_known_motion_and_demo_runs() {
     assert!(o.status.success(), "{}", stderr(&o));
     let rep: serde_json::Value =
         serde_json::from_slice(&std::fs::read(d.path().join("demo.json")).unwrap()).unwrap();
-    assert_eq!(rep["steps"].as_array().unwrap().len(), 8);
+    assert_eq!(rep["steps"].as_array().unwrap().len(), 9);
     assert!(d.path().join("demo/gear_curvature.ply").exists());
 }
 
@@ -383,4 +383,50 @@ fn offsets_find_the_shelf_pitch_and_sparsity_runs_on_a_folder() {
     assert!(motif(&["example", "gear", "set/natural/gear.obj"], d.path()).status.success());
     let r = json_of(&motif(&["sparsity", "set", "--json"], d.path()));
     assert_eq!(r["models"].as_array().unwrap().len(), 2);
+}
+
+#[test]
+fn retarget_adds_shelf_cells_and_refuses_models_without_repetition() {
+    let d = tmp();
+    assert!(motif(&["example", "shelf", "shelf.obj"], d.path()).status.success());
+    let r =
+        json_of(&motif(&["retarget", "shelf.obj", "--steps", "1,1", "-o", "big.obj", "--json"], d.path()));
+    assert_eq!(r["steps"], serde_json::json!([1, 1, 0]));
+    let rep = &r["retarget"];
+    assert!(rep["nodes"].as_u64().unwrap() < 200 && rep["labels"].as_u64().unwrap() == 4, "{rep}");
+    // The generated 5x4 shelf is the ground truth: same bounding box.
+    assert!(motif(&["example", "shelf", "ref.obj"], d.path()).status.success());
+    let big = json_of(&motif(&["info", "big.obj", "--json"], d.path()));
+    let small = json_of(&motif(&["info", "shelf.obj", "--json"], d.path()));
+    let (bx, sx) = (
+        big["bbox_max"][0].as_f64().unwrap() - big["bbox_min"][0].as_f64().unwrap(),
+        small["bbox_max"][0].as_f64().unwrap() - small["bbox_min"][0].as_f64().unwrap(),
+    );
+    assert!((bx - sx - 0.42).abs() < 1e-6, "one 0.42 cell wider: {bx} vs {sx}");
+    // Target size is rounded to whole cells.
+    let r = json_of(&motif(
+        &["retarget", "shelf.obj", "--target-size", "2.5,1.5,0.3", "-o", "t.obj", "--json"],
+        d.path(),
+    ));
+    assert_eq!(r["steps"][0], 2);
+    // Dense baseline: many more nodes and labels.
+    let r = json_of(&motif(
+        &["retarget", "shelf.obj", "--steps", "1,1", "--method", "dense", "-o", "dense.obj", "--json"],
+        d.path(),
+    ));
+    assert!(r["retarget"]["nodes"].as_u64().unwrap() > 500);
+    // A gear repeats by rotation, not by translation: a clear error with the evidence, and a
+    // plain resize only when asked.
+    assert!(motif(&["example", "gear", "gear.obj"], d.path()).status.success());
+    let o = motif(&["retarget", "gear.obj", "--steps", "1", "-o", "g.obj"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("no repetition"), "{}", stderr(&o));
+    assert!(!d.path().join("g.obj").exists());
+    let o =
+        motif(&["retarget", "gear.obj", "--target-size", "3,3,1", "--plain-resize", "-o", "g.obj"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Shrinking below one cell is refused.
+    let o = motif(&["retarget", "shelf.obj", "--steps", "-9,0", "-o", "x.obj"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(!d.path().join("x.obj").exists());
 }

@@ -12,6 +12,7 @@ mod info;
 mod mrf;
 mod normals;
 mod offsets;
+mod retarget;
 mod sample;
 mod symmetry;
 
@@ -40,6 +41,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Symmetry(SymmetryCommand::Check(a)) => symmetry::check(a, g),
         Command::Deform(a) => deform::run(a, g),
         Command::Bench(BenchCommand::Deform(a)) => bench::deform(a, g),
+        Command::Retarget(a) => retarget::run(a, g),
         Command::Offsets(a) => offsets::offsets(a, g),
         Command::Sparsity(a) => offsets::sparsity(a, g),
         Command::Mrf(MrfCommand::Solve(a)) => mrf::solve(a, g),
