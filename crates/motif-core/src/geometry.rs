@@ -210,6 +210,55 @@ pub fn any_orthonormal(n: Point3) -> Point3 {
     normalize(cross(n, a)).unwrap_or([0.0, 0.0, 1.0])
 }
 
+/// The point of triangle `abc` closest to `p`: classifies `p` against the Voronoi regions of the
+/// corners, then the edges, then the face, using barycentric quantities only (Ericson, Real-Time
+/// Collision Detection, 5.1.5). A zero-area triangle gives its closest corner.
+pub fn closest_point_on_triangle(p: Point3, a: Point3, b: Point3, c: Point3) -> Point3 {
+    let ab = sub(b, a);
+    let ac = sub(c, a);
+    let ap = sub(p, a);
+    let d1 = dot(ab, ap);
+    let d2 = dot(ac, ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = sub(p, b);
+    let d3 = dot(ab, bp);
+    let d4 = dot(ac, bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return add(a, scale(ab, v));
+    }
+    let cp = sub(p, c);
+    let d5 = dot(ab, cp);
+    let d6 = dot(ac, cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return add(a, scale(ac, w));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return add(b, scale(sub(c, b), w));
+    }
+    let denom = va + vb + vc;
+    if denom.abs() < f64::MIN_POSITIVE {
+        // A degenerate (zero-area) triangle that slipped through: its closest corner.
+        return [a, b, c].into_iter().min_by(|x, y| dist2(p, *x).total_cmp(&dist2(p, *y))).unwrap_or(a);
+    }
+    let v = vb / denom;
+    let w = vc / denom;
+    add(a, add(scale(ab, v), scale(ac, w)))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -7,7 +7,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use motif_core::TriMesh;
-use motif_core::geometry::{Mat4, Point3, add, dist, dot, scale, sub, transform_point};
+use motif_core::geometry::{Mat4, Point3, add, closest_point_on_triangle, dist, scale, transform_point};
 use motif_core::procedural::SymmetryAnnotation;
 use motif_core::spatial::KdTree;
 
@@ -81,52 +81,6 @@ impl<'a> SurfaceDistance<'a> {
         }
         best
     }
-}
-
-/// The closest point to `p` on triangle `abc` (Ericson, Real-Time Collision Detection, 5.1.5).
-pub(crate) fn closest_point_on_triangle(p: Point3, a: Point3, b: Point3, c: Point3) -> Point3 {
-    let ab = sub(b, a);
-    let ac = sub(c, a);
-    let ap = sub(p, a);
-    let d1 = dot(ab, ap);
-    let d2 = dot(ac, ap);
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return a;
-    }
-    let bp = sub(p, b);
-    let d3 = dot(ab, bp);
-    let d4 = dot(ac, bp);
-    if d3 >= 0.0 && d4 <= d3 {
-        return b;
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        let v = d1 / (d1 - d3);
-        return add(a, scale(ab, v));
-    }
-    let cp = sub(p, c);
-    let d5 = dot(ab, cp);
-    let d6 = dot(ac, cp);
-    if d6 >= 0.0 && d5 <= d6 {
-        return c;
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        let w = d2 / (d2 - d6);
-        return add(a, scale(ac, w));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return add(b, scale(sub(c, b), w));
-    }
-    let denom = va + vb + vc;
-    if denom.abs() < f64::MIN_POSITIVE {
-        return a;
-    }
-    let v = vb / denom;
-    let w = vc / denom;
-    add(a, add(scale(ab, v), scale(ac, w)))
 }
 
 /// Largest distance from `g(x_k)`, `k` in the element's domain, to the surface, relative to the
