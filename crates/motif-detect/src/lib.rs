@@ -5,8 +5,25 @@
 //! issue: curvature features and the HOC descriptor (5.3.1, 5.4), the dictionary, EM
 //! co-occurrence voting (5.3.2), spectral grouping into instances (5.3.3), MDL incremental
 //! detection, and the evaluation protocol of 5.5.2. It depends on `motif-core` only.
+//!
+//! Available now:
+//! - [`detection`]: the detection / ground-truth JSON schema (`../shared/formats/detection.md`),
+//!   read, written and validated;
+//! - [`eval`]: the evaluation protocol of thesis 5.5.2 (box matching, precision, recall, F, the
+//!   PR curve by class removal and the stress curve over the overlap threshold τ);
+//! - [`plot`]: the PR and stress curves as a PNG (like the thesis's Fig. 5.9).
 
 #![warn(missing_docs)]
+
+pub mod detection;
+pub mod error;
+pub mod eval;
+pub mod plot;
+
+pub use detection::{DetectedClass, DetectedInstance, DetectionResult};
+pub use error::{DetectError, Result};
+pub use eval::{EvalOptions, EvalReport, EvalSummary, evaluate, evaluate_many};
+pub use plot::{EvalCurves, plot_pr_and_stress};
 
 /// The thesis chapter this crate implements, for reports and `--version` output.
 pub const THESIS_CHAPTER: &str = "5: approximate 3D partial symmetry detection by co-occurrence analysis";

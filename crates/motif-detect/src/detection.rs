@@ -1,0 +1,154 @@
+//! Building-block detection results and ground-truth annotations: the JSON schema of
+//! `../shared/formats/detection.md`, written by `motif detect` and read by `motif eval`.
+//!
+//! A [`DetectionResult`] is a list of classes (thesis 5.5.2: 𝐃ʲ for a detection, 𝐆ⁱ for a
+//! ground truth), each a list of instances given by an axis-aligned bounding box in world
+//! coordinates. Ground-truth files use the same schema.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{DetectError, Result};
+
+/// One scene's detected (or annotated) building blocks.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DetectionResult {
+    /// The scanned scene the classes belong to, e.g. `"scene_03.ply"`.
+    pub scene: String,
+    /// The building-block classes; may be empty (nothing detected).
+    pub classes: Vec<DetectedClass>,
+}
+
+/// One class of building blocks: instances that are repetitions of the same template.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DetectedClass {
+    /// Optional class name (`"window"`; detections may use `"class_0"`, ...).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// The class's instances; at least one.
+    pub instances: Vec<DetectedInstance>,
+}
+
+/// One instance of a class.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DetectedInstance {
+    /// Minimum corner of the axis-aligned box, world coordinates.
+    pub bbox_min: [f64; 3],
+    /// Maximum corner of the axis-aligned box, world coordinates; `bbox_min[k] <= bbox_max[k]`.
+    pub bbox_max: [f64; 3],
+    /// Optional `instance_from_template`: maps the class template (instance 0, canonical pose)
+    /// onto this instance; row-major 4 × 4 homogeneous matrix.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub transform: Option<[[f64; 4]; 4]>,
+    /// Optional indices of the input points belonging to this instance.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub points: Option<Vec<u32>>,
+}
+
+impl DetectedInstance {
+    /// An instance with only its bounding box.
+    pub fn from_box(bbox_min: [f64; 3], bbox_max: [f64; 3]) -> Self {
+        Self { bbox_min, bbox_max, transform: None, points: None }
+    }
+
+    /// Volume of the bounding box (0 for a flat or degenerate box).
+    pub fn volume(&self) -> f64 {
+        (0..3).map(|k| (self.bbox_max[k] - self.bbox_min[k]).max(0.0)).product()
+    }
+}
+
+impl DetectedClass {
+    /// A class without a name from its instances.
+    pub fn new(instances: Vec<DetectedInstance>) -> Self {
+        Self { name: None, instances }
+    }
+}
+
+impl DetectionResult {
+    /// Total number of instances over all classes (Σⱼ |𝐃ʲ| in thesis eq. 5.5).
+    pub fn instance_count(&self) -> usize {
+        self.classes.iter().map(|c| c.instances.len()).sum()
+    }
+
+    /// Checks that every value is usable for scoring: finite coordinates, `bbox_min <= bbox_max`
+    /// per axis, finite transforms, and no class without instances. `origin` names the source
+    /// (a file path, or `<memory>`) in the error, which also names the bad field.
+    pub fn validate(&self, origin: &str) -> Result<()> {
+        let bad = |field: String, problem: String| DetectError::Invalid {
+            origin: origin.to_string(),
+            field,
+            problem,
+        };
+        for (c, class) in self.classes.iter().enumerate() {
+            if class.instances.is_empty() {
+                return Err(bad(
+                    format!("classes[{c}].instances"),
+                    "the class has no instances; remove the class or add its instances".into(),
+                ));
+            }
+            for (i, inst) in class.instances.iter().enumerate() {
+                let at = format!("classes[{c}].instances[{i}]");
+                for (name, corner) in [("bbox_min", &inst.bbox_min), ("bbox_max", &inst.bbox_max)] {
+                    for (k, v) in corner.iter().enumerate() {
+                        if !v.is_finite() {
+                            return Err(bad(
+                                format!("{at}.{name}[{k}]"),
+                                format!("{v} is not a finite number"),
+                            ));
+                        }
+                    }
+                }
+                for k in 0..3 {
+                    if inst.bbox_min[k] > inst.bbox_max[k] {
+                        return Err(bad(
+                            format!("{at}.bbox_min[{k}]"),
+                            format!(
+                                "bbox_min[{k}] = {} is greater than bbox_max[{k}] = {}; swap the corners",
+                                inst.bbox_min[k], inst.bbox_max[k]
+                            ),
+                        ));
+                    }
+                }
+                if let Some(t) = &inst.transform {
+                    for (r, row) in t.iter().enumerate() {
+                        for (k, v) in row.iter().enumerate() {
+                            if !v.is_finite() {
+                                return Err(bad(
+                                    format!("{at}.transform[{r}][{k}]"),
+                                    format!("{v} is not a finite number"),
+                                ));
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Parses and validates a detection or ground truth from JSON text; `origin` names the
+    /// source in errors.
+    pub fn from_json_str(text: &str, origin: &Path) -> Result<Self> {
+        let result: Self = serde_json::from_str(text)
+            .map_err(|source| DetectError::Json { path: origin.to_path_buf(), source })?;
+        result.validate(&origin.display().to_string())?;
+        Ok(result)
+    }
+
+    /// Reads and validates a detection or ground-truth file.
+    pub fn read(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|source| DetectError::Io { path: path.to_path_buf(), source })?;
+        Self::from_json_str(&text, path)
+    }
+
+    /// Validates and writes this result to `path` as pretty-printed JSON.
+    pub fn write(&self, path: &Path) -> Result<()> {
+        self.validate(&path.display().to_string())?;
+        let text = serde_json::to_string_pretty(self)
+            .map_err(|source| DetectError::Json { path: path.to_path_buf(), source })?;
+        std::fs::write(path, text + "\n")
+            .map_err(|source| DetectError::Io { path: path.to_path_buf(), source })
+    }
+}

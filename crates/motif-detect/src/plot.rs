@@ -1,0 +1,157 @@
+//! Pictures of the 5.5.2 evaluation (like the thesis's Fig. 5.9): the PR curve (precision
+//! against recall as detected classes are removed, largest first) and the stress curve (F
+//! against the minimum overlap ratio τ), side by side in one PNG.
+//!
+//! Drawn like `motif-retarget`'s pictures: plotters into an RGB buffer, written with `png`, text
+//! in DejaVu Sans embedded from the `dejavu` crate (no system fonts needed).
+
+use std::path::Path;
+use std::sync::Once;
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::{FontStyle, register_font};
+
+use crate::error::{DetectError, Result};
+use crate::eval::{EvalReport, EvalSummary};
+
+const FONT: &str = "sans-serif";
+static FONT_ONCE: Once = Once::new();
+
+fn register_fonts() {
+    FONT_ONCE.call_once(|| {
+        // Valid TrueType bytes from the `dejavu` crate; a failure would only lose the text.
+        let _ = register_font(FONT, FontStyle::Normal, dejavu::sans::regular());
+    });
+}
+
+fn plot_err(path: &Path, e: impl std::fmt::Display) -> DetectError {
+    DetectError::Plot { path: path.to_path_buf(), message: e.to_string() }
+}
+
+/// What [`plot_pr_and_stress`] draws: implemented by one scene's [`EvalReport`] and by the
+/// mean curves of an [`EvalSummary`].
+pub trait EvalCurves {
+    /// The picture's title.
+    fn title(&self) -> String;
+    /// PR curve points as `(recall, precision)`, all classes first.
+    fn pr_points(&self) -> Vec<(f64, f64)>;
+    /// Stress curve points as `(τ, F)`.
+    fn stress_points(&self) -> Vec<(f64, f64)>;
+}
+
+impl EvalCurves for EvalReport {
+    fn title(&self) -> String {
+        format!(
+            "{}: P {:.3}, R {:.3}, F {:.3} at tau {}",
+            self.scene, self.precision, self.recall, self.f, self.tau
+        )
+    }
+    fn pr_points(&self) -> Vec<(f64, f64)> {
+        self.pr_curve.iter().map(|&(_, p, r)| (r, p)).collect()
+    }
+    fn stress_points(&self) -> Vec<(f64, f64)> {
+        self.stress.clone()
+    }
+}
+
+impl EvalCurves for EvalSummary {
+    fn title(&self) -> String {
+        format!(
+            "mean of {} scenes: P {:.3}, R {:.3}, F {:.3} at tau {}",
+            self.scenes.len(),
+            self.precision,
+            self.recall,
+            self.f,
+            self.options.tau
+        )
+    }
+    fn pr_points(&self) -> Vec<(f64, f64)> {
+        self.mean_pr_curve.iter().map(|&(_, p, r)| (r, p)).collect()
+    }
+    fn stress_points(&self) -> Vec<(f64, f64)> {
+        self.mean_stress.clone()
+    }
+}
+
+/// Draws the PR curve (left) and the stress curve (right) of `curves` to `path` (PNG,
+/// 1200 × 560 pixels).
+pub fn plot_pr_and_stress(curves: &impl EvalCurves, path: &Path) -> Result<()> {
+    register_fonts();
+    let size = (1200u32, 560u32);
+    let mut buf = vec![255u8; size.0 as usize * size.1 as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, size).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
+        let root = root.titled(&curves.title(), (FONT, 20)).map_err(|e| plot_err(path, e))?;
+        let (left, right) = root.split_horizontally(size.0 / 2);
+        let pr_colour = RGBColor(214, 39, 40);
+        draw_curve(
+            &left,
+            &curves.pr_points(),
+            "(a) PR curve",
+            "recall",
+            "precision",
+            (0.0, 1.0),
+            pr_colour,
+            path,
+        )?;
+        let stress = curves.stress_points();
+        let tau_max = stress.iter().map(|p| p.0).fold(0.0, f64::max).max(1e-6);
+        let stress_colour = RGBColor(31, 119, 180);
+        draw_curve(
+            &right,
+            &stress,
+            "(b) stress test",
+            "tau (min. overlap)",
+            "F",
+            (0.0, tau_max),
+            stress_colour,
+            path,
+        )?;
+        root.present().map_err(|e| plot_err(path, e))?;
+    }
+    let file = std::fs::File::create(path).map_err(|e| plot_err(path, e))?;
+    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), size.0, size.1);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    let mut w = enc.write_header().map_err(|e| plot_err(path, e))?;
+    w.write_image_data(&buf).map_err(|e| plot_err(path, e))?;
+    w.finish().map_err(|e| plot_err(path, e))?;
+    Ok(())
+}
+
+fn draw_curve(
+    area: &DrawingArea<BitMapBackend, Shift>,
+    points: &[(f64, f64)],
+    caption: &str,
+    x_desc: &str,
+    y_desc: &str,
+    x_range: (f64, f64),
+    colour: RGBColor,
+    path: &Path,
+) -> Result<()> {
+    let mut chart = ChartBuilder::on(area)
+        .caption(caption, (FONT, 18).into_font())
+        .margin(16)
+        .x_label_area_size(40)
+        .y_label_area_size(50)
+        .build_cartesian_2d(x_range.0..x_range.1, 0.0..1.02)
+        .map_err(|e| plot_err(path, e))?;
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .label_style((FONT, 13))
+        .axis_desc_style((FONT, 14))
+        .light_line_style(RGBColor(235, 235, 235))
+        .draw()
+        .map_err(|e| plot_err(path, e))?;
+    chart
+        .draw_series(LineSeries::new(points.iter().copied(), colour.stroke_width(2)))
+        .map_err(|e| plot_err(path, e))?;
+    chart
+        .draw_series(points.iter().map(|&p| Circle::new(p, 3, colour.filled())))
+        .map_err(|e| plot_err(path, e))?;
+    Ok(())
+}
