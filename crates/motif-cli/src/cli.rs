@@ -64,6 +64,9 @@ pub enum Command {
     Offsets(OffsetsArgs),
     /// The offset-sparsity study (thesis 4.3): how concentrated offsets are, per category.
     Sparsity(SparsityArgs),
+    /// Score building-block detections against ground truth (thesis 5.5.2): precision, recall, F,
+    /// the PR curve and the stress curve; averaged over scenes when given several pairs.
+    Eval(EvalArgs),
     /// Multi-label MRF problems (alpha-expansion on Boykov–Kolmogorov max-flow).
     #[command(subcommand)]
     Mrf(MrfCommand),
@@ -523,6 +526,21 @@ pub struct RetargetArgs {
     /// When the model has no repetition, scale it to --target-size instead of failing.
     #[arg(long)]
     pub plain_resize: bool,
+    #[command(flatten)]
+    pub json: JsonArg,
+}
+
+#[derive(Debug, Args)]
+pub struct EvalArgs {
+    /// Pairs of files: RESULT.json GT.json [RESULT2.json GT2.json ...] (../shared/formats/detection.md).
+    #[arg(required = true, num_args = 2..)]
+    pub files: Vec<PathBuf>,
+    /// Minimum overlap ratio vol(A∩B)/max(vol(A), vol(B)) for two boxes to match.
+    #[arg(long, default_value_t = 0.125)]
+    pub tau: f64,
+    /// PR curve and stress curve (PNG).
+    #[arg(long, value_name = "PNG")]
+    pub plot: Option<PathBuf>,
     #[command(flatten)]
     pub json: JsonArg,
 }

@@ -47,6 +47,12 @@ pub fn exit_code(err: &anyhow::Error) -> u8 {
                 _ => 2,
             };
         }
+        if let Some(e) = cause.downcast_ref::<motif_detect::DetectError>() {
+            return match e {
+                motif_detect::DetectError::Plot { .. } => 1,
+                _ => 2,
+            };
+        }
         if let Some(e) = cause.downcast_ref::<motif_retarget::retarget::RetargetError>() {
             use motif_retarget::retarget::RetargetError as E;
             return match e {

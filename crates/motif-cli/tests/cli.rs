@@ -430,3 +430,31 @@ fn retarget_adds_shelf_cells_and_refuses_models_without_repetition() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(!d.path().join("x.obj").exists());
 }
+
+#[test]
+fn eval_scores_a_detection_against_ground_truth() {
+    let d = tmp();
+    let gt = r#"{"scene": "s", "classes": [{"name": "window", "instances": [
+        {"bbox_min": [0, 0, 0], "bbox_max": [1, 1, 1]}, {"bbox_min": [2, 0, 0], "bbox_max": [3, 1, 1]}]}]}"#;
+    // One of the two windows found, plus a spurious class of one box far away.
+    let det = r#"{"scene": "s", "classes": [
+        {"instances": [{"bbox_min": [0, 0, 0], "bbox_max": [1, 1, 1]}]},
+        {"instances": [{"bbox_min": [9, 9, 9], "bbox_max": [10, 10, 10]}]}]}"#;
+    std::fs::write(d.path().join("gt.json"), gt).unwrap();
+    std::fs::write(d.path().join("det.json"), det).unwrap();
+    let r = json_of(&motif(&["eval", "det.json", "gt.json", "--plot", "pr.png", "--json"], d.path()));
+    // By hand: precision = (1 + 0) / 2, recall = 1 / 2, F = 0.5.
+    assert!((r["precision"].as_f64().unwrap() - 0.5).abs() < 1e-12, "{r}");
+    assert!((r["recall"].as_f64().unwrap() - 0.5).abs() < 1e-12, "{r}");
+    assert!((r["f"].as_f64().unwrap() - 0.5).abs() < 1e-12, "{r}");
+    assert!(d.path().join("pr.png").exists());
+    std::fs::write(
+        d.path().join("bad.json"),
+        r#"{"scene": "s", "classes": [{"instances": [{"bbox_min": [1, 0, 0], "bbox_max": [0, 1, 1]}]}]}"#,
+    )
+    .unwrap();
+    let o = motif(&["eval", "bad.json", "gt.json"], d.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("bad.json"), "{}", stderr(&o));
+    assert_eq!(motif(&["eval", "det.json"], d.path()).status.code(), Some(2));
+}

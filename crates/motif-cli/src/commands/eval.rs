@@ -1,0 +1,55 @@
+//! `motif eval`: the evaluation protocol of thesis 5.5.2 on detection results.
+
+use motif_detect::{DetectionResult, EvalOptions, evaluate_many, plot_pr_and_stress};
+
+use crate::cli::{EvalArgs, GlobalArgs};
+use crate::output::{bad_input, check_output, maybe_json};
+
+pub fn run(a: EvalArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    if a.files.len() % 2 != 0 {
+        return Err(bad_input(format!("give RESULT GT pairs: {} files is an odd number", a.files.len())));
+    }
+    let options = EvalOptions { tau: a.tau, ..Default::default() };
+    options.validate()?;
+    let mut loaded = Vec::new();
+    for pair in a.files.chunks(2) {
+        loaded.push((DetectionResult::read(&pair[0])?, DetectionResult::read(&pair[1])?));
+    }
+    let summary = evaluate_many(loaded.iter().map(|(d, gt)| (d, gt)), &options)?;
+    if let Some(p) = &a.plot {
+        let inputs: Vec<&std::path::Path> = a.files.iter().map(|f| f.as_path()).collect();
+        check_output(p, &inputs, g.force)?;
+        plot_pr_and_stress(&summary, p)?;
+    }
+    if !crate::output::json_on_stdout(&a.json.json) && !g.quiet {
+        for (s, pair) in summary.scenes.iter().zip(a.files.chunks(2)) {
+            println!(
+                "{}: P {:.3}  R {:.3}  F {:.3}  ({} detected classes / {} instances vs {} / {} annotated)",
+                pair[0].display(),
+                s.precision,
+                s.recall,
+                s.f,
+                s.detected_classes,
+                s.detected_instances,
+                s.ground_truth_classes,
+                s.ground_truth_instances
+            );
+        }
+        if summary.scenes.len() > 1 {
+            println!(
+                "mean over {} scenes: P {:.3}  R {:.3}  F {:.3}",
+                summary.scenes.len(),
+                summary.precision,
+                summary.recall,
+                summary.f
+            );
+        }
+        let stress: Vec<String> =
+            summary.mean_stress.iter().step_by(4).map(|(t, f)| format!("{t:.2}:{f:.2}")).collect();
+        println!("stress (tau:F) {}", stress.join("  "));
+        if let Some(p) = &a.plot {
+            eprintln!("wrote {}", p.display());
+        }
+    }
+    maybe_json(&a.json.json, &summary)
+}
