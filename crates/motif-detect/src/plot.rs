@@ -2,7 +2,7 @@
 //! against recall as detected classes are removed, largest first) and the stress curve (F
 //! against the minimum overlap ratio τ), side by side in one PNG.
 //!
-//! Drawn like `motif-retarget`'s pictures: plotters into an RGB buffer, written with `png`, text
+//! Drawn like `motif-retarget`'s pictures: plotters into an RGB buffer, written with `motif_core::io::write_png_rgb`, text
 //! in DejaVu Sans embedded from the `dejavu` crate (no system fonts needed).
 
 use std::path::Path;
@@ -111,14 +111,7 @@ pub fn plot_pr_and_stress(curves: &impl EvalCurves, path: &Path) -> Result<()> {
         )?;
         root.present().map_err(|e| plot_err(path, e))?;
     }
-    let file = std::fs::File::create(path).map_err(|e| plot_err(path, e))?;
-    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), size.0, size.1);
-    enc.set_color(png::ColorType::Rgb);
-    enc.set_depth(png::BitDepth::Eight);
-    let mut w = enc.write_header().map_err(|e| plot_err(path, e))?;
-    w.write_image_data(&buf).map_err(|e| plot_err(path, e))?;
-    w.finish().map_err(|e| plot_err(path, e))?;
-    Ok(())
+    motif_core::io::write_png_rgb(path, size.0, size.1, &buf).map_err(|e| plot_err(path, e))
 }
 
 fn draw_curve(

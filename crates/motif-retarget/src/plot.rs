@@ -53,14 +53,7 @@ fn render_png(
         draw(&root)?;
         root.present().map_err(|e| plot_err(path, e))?;
     }
-    let file = std::fs::File::create(path).map_err(|e| plot_err(path, e))?;
-    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), size.0, size.1);
-    enc.set_color(png::ColorType::Rgb);
-    enc.set_depth(png::BitDepth::Eight);
-    let mut w = enc.write_header().map_err(|e| plot_err(path, e))?;
-    w.write_image_data(&buf).map_err(|e| plot_err(path, e))?;
-    w.finish().map_err(|e| plot_err(path, e))?;
-    Ok(())
+    motif_core::io::write_png_rgb(path, size.0, size.1, &buf).map_err(|e| plot_err(path, e))
 }
 
 /// A light-to-dark heat colour for `t` in [0, 1] (pale yellow → orange → red → dark purple).

@@ -29,6 +29,7 @@
 mod atomic;
 mod common;
 mod gltf;
+mod image;
 mod obj;
 mod off;
 mod ply;
@@ -39,6 +40,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 pub use atomic::write_atomic;
+pub use image::write_png_rgb;
 
 use crate::error::Position;
 use crate::{Error, PointCloud, Result, TriMesh};
