@@ -107,35 +107,37 @@ impl SamplingGraph {
         }
     }
 
+    /// The rotation of sample `i` alone (see [`SamplingGraph::fit_rotations`]).
+    fn fit_rotation(&self, i: usize, rest: &[Point3], deformed: &[Point3]) -> Mat3 {
+        let nb = self.neighbours(i);
+        if nb.is_empty() {
+            return IDENTITY3;
+        }
+        let mut s = nalgebra::Matrix3::<f64>::zeros();
+        for &j in nb {
+            let j = j as usize;
+            let e = [rest[j][0] - rest[i][0], rest[j][1] - rest[i][1], rest[j][2] - rest[i][2]];
+            let f = [
+                deformed[j][0] - deformed[i][0],
+                deformed[j][1] - deformed[i][1],
+                deformed[j][2] - deformed[i][2],
+            ];
+            for a in 0..3 {
+                for b in 0..3 {
+                    s[(a, b)] += e[a] * f[b];
+                }
+            }
+        }
+        best_rotation(s)
+    }
+
     /// For each sample, the rotation `R_i` that best maps its rest neighbourhood onto the deformed
     /// one, `argmin Σ_j |(y_j − y_i) − R (x_j − x_i)|²` (Sorkine & Alexa 2007): with the
     /// covariance `S = Σ_j (x_j − x_i)(y_j − y_i)ᵀ = U Σ Vᵀ`, `R = V Uᵀ`, and when `det R < 0`
     /// the column of `U` of the smallest singular value is negated (a rotation, never a
     /// reflection). Samples without neighbours get the identity. Runs in parallel over samples.
     pub fn fit_rotations(&self, rest: &[Point3], deformed: &[Point3], out: &mut [Mat3]) {
-        let fit = |(i, r): (usize, &mut Mat3)| {
-            let nb = self.neighbours(i);
-            if nb.is_empty() {
-                *r = IDENTITY3;
-                return;
-            }
-            let mut s = nalgebra::Matrix3::<f64>::zeros();
-            for &j in nb {
-                let j = j as usize;
-                let e = [rest[j][0] - rest[i][0], rest[j][1] - rest[i][1], rest[j][2] - rest[i][2]];
-                let f = [
-                    deformed[j][0] - deformed[i][0],
-                    deformed[j][1] - deformed[i][1],
-                    deformed[j][2] - deformed[i][2],
-                ];
-                for a in 0..3 {
-                    for b in 0..3 {
-                        s[(a, b)] += e[a] * f[b];
-                    }
-                }
-            }
-            *r = best_rotation(s);
-        };
+        let fit = |(i, r): (usize, &mut Mat3)| *r = self.fit_rotation(i, rest, deformed);
         if out.len() >= 512 {
             out.par_iter_mut().enumerate().with_min_len(128).for_each(fit);
         } else {
@@ -293,28 +295,7 @@ impl RotationPlan {
         deformed: &[Point3],
         out: &mut [Mat3],
     ) {
-        let fit_one = |i: usize| -> Mat3 {
-            let nb = graph.neighbours(i);
-            if nb.is_empty() {
-                return IDENTITY3;
-            }
-            let mut s = nalgebra::Matrix3::<f64>::zeros();
-            for &j in nb {
-                let j = j as usize;
-                let e = [rest[j][0] - rest[i][0], rest[j][1] - rest[i][1], rest[j][2] - rest[i][2]];
-                let f = [
-                    deformed[j][0] - deformed[i][0],
-                    deformed[j][1] - deformed[i][1],
-                    deformed[j][2] - deformed[i][2],
-                ];
-                for a in 0..3 {
-                    for b in 0..3 {
-                        s[(a, b)] += e[a] * f[b];
-                    }
-                }
-            }
-            best_rotation(s)
-        };
+        let fit_one = |i: usize| graph.fit_rotation(i, rest, deformed);
         if self.own.len() >= 256 {
             out.par_iter_mut()
                 .enumerate()
