@@ -68,13 +68,7 @@ fn repo_root() -> PathBuf {
 }
 
 fn armadillo() -> Option<TriMesh> {
-    let data = match std::env::var_os("MOTIF_DATA") {
-        Some(p) => PathBuf::from(p),
-        None => {
-            let root = repo_root().canonicalize().ok()?;
-            root.ancestors().skip(1).map(|a| a.join("shared/data")).find(|p| p.is_dir())?
-        }
-    };
+    let data = motif_core::data::shared_data_dir(&repo_root())?;
     read_off(&data.join("natural/cgal_armadillo.off"))
 }
 

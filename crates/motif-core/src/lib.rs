@@ -15,6 +15,7 @@
 #![warn(missing_docs)]
 
 pub mod curvature;
+pub mod data;
 pub mod error;
 pub mod geometry;
 pub mod icp;

@@ -3,22 +3,18 @@
 //! position). The data lives outside the repository: `$MOTIF_DATA`, else `../shared/data` next to
 //! the workspace; without it the test prints one line and passes.
 
-use std::path::PathBuf;
+use std::path::Path;
 use std::time::Instant;
 
 use motif_core::io;
 
 #[test]
 fn every_manifest_file_loads_with_the_listed_counts() {
-    let dir = match std::env::var_os("MOTIF_DATA") {
-        Some(d) => PathBuf::from(d),
-        None => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..").join("../shared/data"),
+    let Some(dir) = motif_core::data::shared_data_dir(Path::new(env!("CARGO_MANIFEST_DIR"))) else {
+        println!("skipping: no test data at ../shared/data or $MOTIF_DATA (set MOTIF_DATA)");
+        return;
     };
     let manifest_path = dir.join("MANIFEST.json");
-    if !manifest_path.is_file() {
-        println!("skipping: no test data at {} (set MOTIF_DATA)", dir.display());
-        return;
-    }
     let text = std::fs::read_to_string(&manifest_path).expect("MANIFEST.json is readable");
     let manifest: serde_json::Value = serde_json::from_str(&text).expect("MANIFEST.json is JSON");
     let files = manifest["files"].as_array().expect("MANIFEST.json has a files array");

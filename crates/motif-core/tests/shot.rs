@@ -321,11 +321,7 @@ fn pcl_tool() -> Option<PathBuf> {
 /// `shared/data`: `MOTIF_DATA`, else `../shared/data` beside the repository (or beside one of its
 /// parent folders, for worktrees).
 fn data_dir() -> Option<PathBuf> {
-    if let Some(p) = std::env::var_os("MOTIF_DATA") {
-        return Some(PathBuf::from(p)).filter(|p| p.is_dir());
-    }
-    let root = repo_root().canonicalize().ok()?;
-    root.ancestors().skip(1).map(|a| a.join("shared/data")).find(|p| p.is_dir())
+    motif_core::data::shared_data_dir(&repo_root())
 }
 
 struct Agreement {

@@ -302,18 +302,7 @@ fn bad_input_is_rejected_with_a_message() {
 
 /// `MOTIF_DATA`, or the first `shared/data` folder found walking up from this crate.
 fn data_dir() -> Option<PathBuf> {
-    if let Ok(d) = std::env::var("MOTIF_DATA") {
-        return Some(PathBuf::from(d));
-    }
-    let mut dir = Some(Path::new(env!("CARGO_MANIFEST_DIR")));
-    while let Some(d) = dir {
-        let c = d.join("shared").join("data");
-        if c.join("MANIFEST.json").is_file() {
-            return Some(c);
-        }
-        dir = d.parent();
-    }
-    None
+    motif_core::data::shared_data_dir(Path::new(env!("CARGO_MANIFEST_DIR")))
 }
 
 /// A claim of the manifest: `rot:N` (or `rot:auto` with an `order`) needs a rotation of order N

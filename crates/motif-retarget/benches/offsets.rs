@@ -19,13 +19,7 @@ use motif_retarget::offsets::{
 };
 
 fn data_dir() -> Option<PathBuf> {
-    if let Ok(d) = std::env::var("MOTIF_DATA") {
-        return Some(PathBuf::from(d));
-    }
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .ancestors()
-        .map(|a| a.join("shared/data"))
-        .find(|p| p.join("MANIFEST.json").is_file())
+    motif_core::data::shared_data_dir(Path::new(env!("CARGO_MANIFEST_DIR")))
 }
 
 fn models() -> Vec<(String, TriMesh)> {

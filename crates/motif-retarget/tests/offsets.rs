@@ -176,12 +176,7 @@ fn man_made_offsets_are_sparser_than_natural_ones() {
 // Real data (shared/data): `MOTIF_DATA` or the first `shared/data` above the crate.
 
 fn data_dir() -> Option<PathBuf> {
-    if let Ok(d) = std::env::var("MOTIF_DATA") {
-        let p = PathBuf::from(d);
-        return p.join("MANIFEST.json").is_file().then_some(p);
-    }
-    let here = Path::new(env!("CARGO_MANIFEST_DIR"));
-    here.ancestors().map(|a| a.join("shared/data")).find(|p| p.join("MANIFEST.json").is_file())
+    motif_core::data::shared_data_dir(Path::new(env!("CARGO_MANIFEST_DIR")))
 }
 
 /// A `trans:AXIS` claim of the manifest: axis index and pitch (model units).

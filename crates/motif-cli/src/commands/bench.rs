@@ -49,11 +49,7 @@ fn data_dir(a: &BenchDeformArgs) -> Option<PathBuf> {
     if let Some(d) = &a.data {
         return Some(d.clone());
     }
-    if let Ok(d) = std::env::var("MOTIF_DATA") {
-        return Some(PathBuf::from(d));
-    }
-    let guess = PathBuf::from("../shared/data");
-    guess.join("MANIFEST.json").is_file().then_some(guess)
+    motif_core::data::shared_data_dir(Path::new("."))
 }
 
 /// Four handles far apart (farthest-point picks among the vertices, starting at the extreme of the
