@@ -12,7 +12,27 @@ use std::process::ExitCode;
 
 use clap::Parser;
 
+/// Exit quietly, like other Unix tools killed by SIGPIPE (status 141), when stdout is closed by a
+/// reader such as `head`: Rust ignores SIGPIPE and `println!` then panics on the broken pipe.
+/// (Restoring the default signal handler would need `unsafe`, which the workspace forbids.)
+fn quiet_on_broken_pipe() {
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let text = info
+            .payload()
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| info.payload().downcast_ref::<&str>().copied())
+            .unwrap_or("");
+        if text.contains("Broken pipe") {
+            std::process::exit(141);
+        }
+        default(info);
+    }));
+}
+
 fn main() -> ExitCode {
+    quiet_on_broken_pipe();
     let cli = cli::Cli::parse();
     if let Some(threads) = cli.global.threads {
         // A second initialisation can only fail if something already built the pool; ignore.

@@ -155,7 +155,7 @@ pub fn build(
     for (f, &c) in assign.iter().enumerate() {
         clusters[c].push(f);
     }
-    // Template: the member with the smallest summed L1 distance to the others (on at most 256
+    // Template: the member with the smallest summed L1 distance to the others (on at most 64
     // members, a seeded subset, to keep this linear in the cluster size).
     let templates: Vec<Option<(usize, Vec<f32>)>> = clusters
         .par_iter()
@@ -165,10 +165,10 @@ pub fn build(
                 return None;
             }
             let mut m = members.clone();
-            if m.len() > 256 {
+            if m.len() > 64 {
                 let mut r = ChaCha8Rng::seed_from_u64(seed.wrapping_add(c as u64));
                 m.shuffle(&mut r);
-                m.truncate(256);
+                m.truncate(64);
             }
             let best = m
                 .iter()
@@ -213,20 +213,42 @@ pub fn find_peaks(
     min: f32,
     radius: f64,
     features: &[Feature],
-    hash: &SpatialHash,
+    _hash: &SpatialHash,
 ) -> Vec<Member> {
     let mut cand: Vec<usize> =
         (0..scores.len()).filter(|&f| scores[f].0 >= min && scores[f].0 > 0.0).collect();
     cand.sort_by(|&a, &b| scores[b].0.total_cmp(&scores[a].0).then(a.cmp(&b)));
-    let mut taken = vec![false; scores.len()];
+    // Only kept features can block a candidate, and they are sparse (at least `radius` apart), so
+    // they are hashed as they are kept: a check visits a handful of points, not every feature.
+    let cell = radius.max(f64::MIN_POSITIVE);
+    let key = |p: motif_core::Point3| {
+        [(p[0] / cell).floor() as i64, (p[1] / cell).floor() as i64, (p[2] / cell).floor() as i64]
+    };
+    let mut kept: std::collections::HashMap<[i64; 3], Vec<u32>> = std::collections::HashMap::new();
+    let r2 = radius * radius;
     let mut out = Vec::new();
     for f in cand {
+        let p = features[f].position;
+        let k = key(p);
         let mut blocked = false;
-        hash.for_each_within(features[f].position, radius, |g, _| blocked |= taken[g]);
+        'search: for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    if let Some(v) = kept.get(&[k[0] + dx, k[1] + dy, k[2] + dz]) {
+                        if v.iter()
+                            .any(|&g| motif_core::geometry::dist2(features[g as usize].position, p) <= r2)
+                        {
+                            blocked = true;
+                            break 'search;
+                        }
+                    }
+                }
+            }
+        }
         if blocked {
             continue;
         }
-        taken[f] = true;
+        kept.entry(k).or_default().push(f as u32);
         out.push(Member { feature: f as u32, flip: scores[f].1, score: scores[f].0 });
     }
     out

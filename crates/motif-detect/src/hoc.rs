@@ -11,7 +11,7 @@
 //!   orientation", with curvature in the role of the gradient.
 //! - Votes are spread bilinearly over the spatial bins and linearly (circularly) over orientation
 //!   bins, as HOG does, so a point near a bin border does not flip the descriptor under noise.
-//! - Support points are the resampled cloud thinned to 2ε (`support_spacing`): a 64ε cube at
+//! - Support points are the resampled cloud thinned to 2ε (`support_spacing`, Poisson-disc): a 64ε cube at
 //!   spacing ε holds ~4,000 surface points; at 2ε ~1,000 carry the same histogram (each bin, 8ε
 //!   wide, still receives ~16 points) for a quarter of the cost.
 //! - The sign of t₁ is ambiguous; the thesis keeps two frames turned 180° about x. Motif stores
@@ -21,6 +21,7 @@
 
 use motif_core::Point3;
 use motif_core::geometry::{dot, scale, sub};
+use motif_core::sampling::{CandidateOrder, Constraints, PoissonDiscOptions, Spacing, poisson_disc_points};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -117,25 +118,26 @@ fn flip_permutation() -> Vec<usize> {
 }
 
 /// Computes the descriptors and canonicalises each feature's y axis in place.
-pub fn compute(pre: &Preprocessed, features: &mut [Feature], o: &HocOptions) -> Descriptors {
+pub fn compute(pre: &Preprocessed, features: &mut [Feature], o: &HocOptions, seed: u64) -> Descriptors {
     let eps = pre.epsilon;
     let cell = o.cell * eps;
     let half = cell * GRID as f64 / 2.0;
-    // Support points: the resampled cloud thinned to `support_spacing`·ε by a grid (one point per
-    // cube, the first in input order: deterministic and order-stable).
+    // Support points: the resampled cloud thinned to `support_spacing`·ε by Poisson-disc
+    // elimination in a seeded order — distance-based, so the choice is invariant to a rigid
+    // motion of the input (a world-axis grid would not be).
     let spacing = (o.support_spacing * eps).max(eps * 1e-6);
-    let mut seen = std::collections::HashSet::new();
-    let support: Vec<usize> = (0..pre.points.len())
-        .filter(|&i| {
-            let p = pre.points[i];
-            let k = [
-                (p[0] / spacing).floor() as i64,
-                (p[1] / spacing).floor() as i64,
-                (p[2] / spacing).floor() as i64,
-            ];
-            pre.kappa[i] > 0.0 && seen.insert(k)
-        })
-        .collect();
+    let curved: Vec<usize> = (0..pre.points.len()).filter(|&i| pre.kappa[i] > 0.0).collect();
+    let curved_pts: Vec<Point3> = curved.iter().map(|&i| pre.points[i]).collect();
+    let po = PoissonDiscOptions {
+        spacing: Spacing::Radius(spacing),
+        seed,
+        order: CandidateOrder::Random,
+        ..Default::default()
+    };
+    let support: Vec<usize> = match poisson_disc_points(&curved_pts, None, &Constraints::default(), &po) {
+        Ok(s) => s.candidate_indices().into_iter().map(|k| curved[k]).collect(),
+        Err(_) => curved,
+    };
     let support_pts: Vec<Point3> = support.iter().map(|&i| pre.points[i]).collect();
     let hash = SpatialHash::new(&support_pts, half);
     let perm = flip_permutation();
@@ -143,18 +145,10 @@ pub fn compute(pre: &Preprocessed, features: &mut [Feature], o: &HocOptions) -> 
     let mut data = vec![0.0f32; features.len() * 2 * DIM];
     data.par_chunks_mut(2 * DIM).zip(features.par_iter_mut()).for_each(|(rows, f)| {
         let (d0, d1) = rows.split_at_mut(DIM);
-        let z = f.z();
-        // First moment along y decides the canonical sign of t₁.
+        let (x, y, z) = (f.x, f.y, f.z());
+        // One pass in the frame as given; the first moment along y (curvature-weighted) decides
+        // afterwards which of the two frames is canonical.
         let mut moment = 0.0;
-        hash.for_each_within(f.position, reach, |j, _| {
-            let i = support[j];
-            let v = sub(pre.points[i], f.position);
-            moment += pre.kappa[i] * dot(v, f.y);
-        });
-        if moment < 0.0 {
-            f.y = scale(f.y, -1.0);
-        }
-        let (x, y, z) = (f.x, f.y, if moment < 0.0 { scale(z, -1.0) } else { z });
         hash.for_each_within(f.position, reach, |j, _| {
             let i = support[j];
             let v = sub(pre.points[i], f.position);
@@ -163,6 +157,7 @@ pub fn compute(pre: &Preprocessed, features: &mut [Feature], o: &HocOptions) -> 
                 return;
             }
             let k = pre.kappa[i];
+            moment += k * ly;
             let t = pre.t1[i];
             let (tx, ty, tz) = (dot(t, x), dot(t, y), dot(t, z));
             // Plane 0: tangent plane, coordinates (y, z); plane 1: normal y, coordinates (x, z).
@@ -175,6 +170,10 @@ pub fn compute(pre: &Preprocessed, features: &mut [Feature], o: &HocOptions) -> 
         }
         for (b, &p) in perm.iter().enumerate() {
             d1[p] = d0[b];
+        }
+        if moment < 0.0 {
+            f.y = scale(f.y, -1.0);
+            d0.swap_with_slice(d1);
         }
     });
     Descriptors { data }

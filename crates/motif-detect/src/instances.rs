@@ -11,10 +11,13 @@
 //!   ≈ 1) never pull on each other; modes closer than half the bandwidth merge. As a guard against
 //!   MDS squeezing unrelated groups together in 5 dimensions, each cluster is split into the
 //!   connected components of its co-occurrence graph.
-//! - An instance is kept when it links at least `min_links` of its class's other words; boxes are
-//!   the members' extents in the centre's frame, padded by half a HOC cell (features sit on
-//!   creases, the block's surface extends a little beyond them), with the per-class average taken
-//!   as the median of each bound. Overlapping instances of one class (a word that fires on two
+//! - An instance is kept when it links at least `min_links` of its class's other words. Its box is
+//!   the axis-aligned box of its linked features, padded by half a HOC cell (features sit on
+//!   creases, the block's surface extends a little beyond them); the per-class average is the
+//!   median of each side's length, centred on each instance. Boxes are world-axis-aligned, as the
+//!   evaluation protocol (5.5.2) and the schema are, rather than taken in the centre feature's
+//!   frame: on a crease the normal bisects the two faces, and a box in that tilted frame would
+//!   inflate every world box. Overlapping instances of one class (a word that fires on two
 //!   symmetric corners of one window) are merged, the better-linked one kept.
 
 use motif_core::Point3;
@@ -80,24 +83,16 @@ pub struct Class {
     pub words: Vec<usize>,
     /// The centre (median) word.
     pub centre_word: usize,
-    /// The class box in the centre's local frame (median over instances).
-    pub local_min: Point3,
-    /// Upper corner of the local box.
-    pub local_max: Point3,
+    /// The class box's size in world axes (median over instances, padded).
+    pub extent: Point3,
     /// The instances.
     pub instances: Vec<Instance>,
 }
 
 impl Class {
-    /// Whether world point `p` lies inside the class box placed at instance `k`.
+    /// Whether world point `p` lies inside instance `k`'s box.
     pub fn contains(&self, k: usize, p: Point3) -> bool {
-        let inst = &self.instances[k];
-        let f = &inst.frame;
-        let v = [p[0] - f[0][3], p[1] - f[1][3], p[2] - f[2][3]];
-        (0..3).all(|a| {
-            let l = f[0][a] * v[0] + f[1][a] * v[1] + f[2][a] * v[2];
-            l >= self.local_min[a] && l <= self.local_max[a]
-        })
+        self.instances[k].aabb.contains(p)
     }
 }
 
@@ -344,13 +339,13 @@ pub fn detect_instances(
             }
             linked.sort_unstable();
             linked.dedup();
-            let mut lo = [0.0f64; 3];
-            let mut hi = [0.0f64; 3];
+            let mut lo = f.position;
+            let mut hi = f.position;
             for &g in &linked {
-                let l = f.to_local(m.flip, motif_core::geometry::sub(features[g].position, f.position));
+                let q = features[g].position;
                 for d in 0..3 {
-                    lo[d] = lo[d].min(l[d]);
-                    hi[d] = hi[d].max(l[d]);
+                    lo[d] = lo[d].min(q[d]);
+                    hi[d] = hi[d].max(q[d]);
                 }
             }
             raw.push((m.feature as usize, m.flip, linked, lo, hi));
@@ -364,35 +359,25 @@ pub fn detect_instances(
             v.sort_by(f64::total_cmp);
             v[v.len() / 2]
         };
-        let local_min = [med(&|r| r.3[0]) - pad, med(&|r| r.3[1]) - pad, med(&|r| r.3[2]) - pad];
-        let local_max = [med(&|r| r.4[0]) + pad, med(&|r| r.4[1]) + pad, med(&|r| r.4[2]) + pad];
+        let extent = [
+            med(&|r| r.4[0] - r.3[0]) + 2.0 * pad,
+            med(&|r| r.4[1] - r.3[1]) + 2.0 * pad,
+            med(&|r| r.4[2] - r.3[2]) + 2.0 * pad,
+        ];
         let mut instances: Vec<Instance> = raw
             .into_iter()
-            .map(|(centre, flip, linked, _, _)| {
+            .map(|(centre, flip, linked, lo, hi)| {
                 let f = &features[centre];
                 let a = f.axes(flip);
                 let r =
                     [[a[0][0], a[1][0], a[2][0]], [a[0][1], a[1][1], a[2][1]], [a[0][2], a[1][2], a[2][2]]];
                 let frame = mat4_from_rt(r, f.position);
-                let mut bb: Option<Aabb> = None;
-                for cx in [local_min[0], local_max[0]] {
-                    for cy in [local_min[1], local_max[1]] {
-                        for cz in [local_min[2], local_max[2]] {
-                            let w = f.to_world(flip, [cx, cy, cz]);
-                            match &mut bb {
-                                Some(b) => b.grow(w),
-                                None => bb = Some(Aabb { min: w, max: w }),
-                            }
-                        }
-                    }
-                }
-                Instance {
-                    centre,
-                    flip,
-                    features: linked,
-                    frame,
-                    aabb: bb.unwrap_or(Aabb { min: f.position, max: f.position }),
-                }
+                let c = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0, (lo[2] + hi[2]) / 2.0];
+                let aabb = Aabb {
+                    min: [c[0] - extent[0] / 2.0, c[1] - extent[1] / 2.0, c[2] - extent[2] / 2.0],
+                    max: [c[0] + extent[0] / 2.0, c[1] + extent[1] / 2.0, c[2] + extent[2] / 2.0],
+                };
+                Instance { centre, flip, features: linked, frame, aabb }
             })
             .collect();
         // Merge overlapping instances, best linked first.
@@ -414,7 +399,7 @@ pub fn detect_instances(
         }
         let mut words_of_class: Vec<usize> = comp.iter().map(|&a| connected[a]).collect();
         words_of_class.sort_unstable();
-        classes.push(Class { words: words_of_class, centre_word: c, local_min, local_max, instances: kept });
+        classes.push(Class { words: words_of_class, centre_word: c, extent, instances: kept });
     }
     // Largest first: most instances, then most linked features.
     classes.sort_by(|a, b| {

@@ -51,6 +51,13 @@ pub struct DetectOptions {
     /// Rounds of the MDL incremental scheme (5.4): each keeps the largest class and removes its
     /// features. Default 5 (the thesis's Fig. 5.6 found five classes).
     pub mdl_rounds: usize,
+    /// MDL stopping rule: a round's class is kept only when describing its instances as copies of
+    /// one template saves at least this fraction of all features, saving = (N − 1)·f̄ − f̄ − N
+    /// for N instances of f̄ features each (the template once, one transform per instance, instead
+    /// of every instance's features). The thesis keeps "the minimal number of classes that
+    /// describe most of the input" without a number; 0.02 stops once a class explains under 2% of
+    /// the features. Default 0.02.
+    pub mdl_min_saving: f64,
     /// Fewer features than this: nothing to detect (an empty result, not an error). Default 40.
     pub min_features: usize,
     /// Meshes are sampled with this many points before detection. Default 300,000.
@@ -69,6 +76,7 @@ impl Default for DetectOptions {
             instances: InstanceOptions::default(),
             method: Method::EmSc,
             mdl_rounds: 5,
+            mdl_min_saving: 0.02,
             min_features: 40,
             mesh_samples: 300_000,
             seed: 0,
@@ -97,6 +105,12 @@ pub struct RoundReport {
     pub clustering: ClusteringReport,
     /// Instances of the class kept in this round (0 when the round found nothing).
     pub kept_instances: usize,
+    /// The MDL saving of a class that was found but rejected by the stopping rule.
+    pub rejected_saving: Option<f64>,
+    /// Words of the kept class.
+    pub kept_words: usize,
+    /// Mean features per instance of the kept class (the star model's links plus the centre).
+    pub kept_features_per_instance: f64,
     /// Seconds in the dictionary, EM and instance stages.
     pub seconds: [f64; 3],
 }
@@ -246,7 +260,7 @@ pub fn detect(
     let t1 = Instant::now();
     progress.start("HOC descriptors", 0);
     let mut features = pre.features.clone();
-    let desc = compute(&pre, &mut features, &o.hoc);
+    let desc = compute(&pre, &mut features, &o.hoc, o.seed);
     progress.finish();
     report.seconds.descriptors = t1.elapsed().as_secs_f64();
 
@@ -271,7 +285,19 @@ pub fn detect(
             report.rounds.push(rr);
             break;
         };
+        let n = class.instances.len() as f64;
+        let fbar = class.instances.iter().map(|i| i.features.len()).sum::<usize>() as f64 / n.max(1.0);
+        let saving = (n - 1.0) * fbar - fbar - n;
+        if saving < o.mdl_min_saving * features.len() as f64 {
+            rr.rejected_saving = Some(saving);
+            report.rounds.push(rr);
+            break;
+        }
         rr.kept_instances = class.instances.len();
+        rr.kept_words = class.words.len();
+        rr.kept_features_per_instance = class.instances.iter().map(|i| i.features.len()).sum::<usize>()
+            as f64
+            / class.instances.len().max(1) as f64;
         report.rounds.push(rr);
         // Remove the features the kept class covers (5.4).
         for &f in &ids {

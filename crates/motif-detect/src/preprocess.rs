@@ -277,14 +277,17 @@ pub fn preprocess(cloud: &PointCloud, o: &PreprocessOptions, force: bool) -> Res
             message: format!("ε must be positive and finite, got {epsilon}"),
         });
     }
-    // Estimated resampled count: a surface of the box's area sampled at spacing ε (an upper
-    // bound of the order of magnitude), but never more than the input has.
-    let estimate = (diagonal * diagonal / (epsilon * epsilon)).min(cloud.len() as f64);
+    // The surface resampled at spacing ε holds about area / ε² points; the principal box's
+    // diagonal squared bounds the area of a scene-like surface within a small factor. The input
+    // may hold fewer points (resampling never adds any), but an ε this small also shrinks every
+    // length of the detector (HOC cells, pair radius) below anything the data can show.
+    let estimate = diagonal * diagonal / (epsilon * epsilon);
     if estimate > o.max_points as f64 && !force {
         return Err(DetectError::InvalidOption {
             name: "epsilon",
             message: format!(
-                "ε = {epsilon:.3e} would keep about {estimate:.3e} points (limit {:.0e}); choose a larger ε or pass --force",
+                "ε = {epsilon:.3e} would resample the surface to about {estimate:.1e} points (limit {:.0e}); \
+                 choose a larger ε or pass --force",
                 o.max_points as f64
             ),
         });
