@@ -15,6 +15,7 @@ mod normals;
 mod offsets;
 mod retarget;
 mod sample;
+mod studio;
 mod symmetry;
 
 use std::path::Path;
@@ -50,6 +51,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Mrf(MrfCommand::Generate(a)) => mrf::generate(a, g),
         Command::Example(a) => example::run(a, g),
         Command::Demo(a) => demo::run(a, g),
+        Command::Studio(a) => studio::run(a, g),
     }
 }
 

@@ -1,0 +1,12 @@
+import { chromium } from 'playwright-core';
+const url = process.argv[2];
+const browser = await chromium.launch({ executablePath: '/usr/bin/chromium', args: ['--headless', '--no-sandbox', '--disable-gpu', '--enable-unsafe-swiftshader', '--use-gl=angle', '--use-angle=swiftshader'] });
+const page = await browser.newPage({ viewport: { width: 1280, height: 800 } });
+page.on('console', (m) => console.log('console:', m.text()));
+page.on('pageerror', (e) => console.log('pageerror:', e.message));
+await page.goto(url + '?example=windmill');
+await page.waitForFunction(() => window.motif && window.motif.state.vertices > 0, null, { timeout: 20000 });
+await page.waitForTimeout(500);
+await page.screenshot({ path: '/tmp/smoke.png' });
+console.log(JSON.stringify(await page.evaluate(() => ({ ...window.motif.state, frameTimes: undefined }))));
+await browser.close();
