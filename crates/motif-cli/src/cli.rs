@@ -451,6 +451,20 @@ pub struct DeformArgs {
 pub enum BenchCommand {
     /// Thesis Table 3.1: sizes, prefactor, solve (5 iterations), lift and frames per second.
     Deform(BenchDeformArgs),
+    /// The studio's end-to-end frame time: drags a handle on a generated model in headless
+    /// Chromium (needs scripts/studio-browser-setup.sh) and prints the median of solve, transfer,
+    /// upload + draw.
+    Studio(BenchStudioArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct BenchStudioArgs {
+    /// Mouse-move steps of the drag (frames are fewer when solves are slower than the mouse).
+    #[arg(long, default_value_t = 200)]
+    pub steps: usize,
+    /// Generated example to drag (see `motif example --list`).
+    #[arg(long, default_value = "windmill_100k")]
+    pub example: String,
 }
 
 #[derive(Debug, Args)]

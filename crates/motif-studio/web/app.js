@@ -11,7 +11,7 @@ const state = {
   connected: false, name: null, vertices: 0, triangles: 0, isMesh: false, bbox: null, diagonal: 0,
   meshVersion: 0, handles: 0, handleSamples: [], symmetryResidual: null, restResidual: null,
   maxDisplacement: 0, lastFrameMs: null, medianFrameMs: null, lastSolveMs: null, framesReceived: 0,
-  frameTimes: [], annotation: null, offsets: null, cells: null, totalCells: null, retargetVersion: 0,
+  frameTimes: [], frameLog: [], annotation: null, offsets: null, cells: null, totalCells: null, retargetVersion: 0,
   retargetVertices: 0, detections: null, busy: null, progress: null, saved: [], errors: [], released: 0,
   undo: 0, redo: 0,
 };
@@ -69,6 +69,7 @@ gizmo.addEventListener('objectChange', onGizmoMove);
 // ---------------------------------------------------------------------------------------------
 // Connection
 let ws = null;
+let lastRecv = 0;
 let pendingBinary = [];
 function connect() {
   ws = new WebSocket(`ws://${location.host}/ws`);
@@ -80,7 +81,7 @@ function connect() {
     if (params.get('open')) send({ type: 'open', path: params.get('open') });
   };
   ws.onclose = () => { state.connected = false; message('connection closed; reload the page', true); };
-  ws.onmessage = (ev) => (typeof ev.data === 'string' ? onText(JSON.parse(ev.data)) : onBinary(ev.data));
+  ws.onmessage = (ev) => { lastRecv = performance.now(); return typeof ev.data === 'string' ? onText(JSON.parse(ev.data)) : onBinary(ev.data); };
 }
 function send(m) {
   if (ws && ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify(m));
@@ -504,6 +505,9 @@ function onFrame(s, pos, solveMs) {
     state.lastSolveMs = solveMs;
     state.framesReceived++;
     state.frameTimes.push(dt);
+    // Breakdown: server solve, transfer (send → received, less the solve), upload + draw.
+    state.frameLog.push({ total: dt, solve: solveMs, transfer: lastRecv - t0 - solveMs, draw: performance.now() - lastRecv });
+    if (state.frameLog.length > 2000) state.frameLog.shift();
     if (state.frameTimes.length > 1000) state.frameTimes.shift();
     const recent = state.frameTimes.slice(-60).sort((a, b) => a - b);
     state.medianFrameMs = recent[Math.floor(recent.length / 2)];

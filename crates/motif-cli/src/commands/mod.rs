@@ -43,6 +43,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Symmetry(SymmetryCommand::Check(a)) => symmetry::check(a, g),
         Command::Deform(a) => deform::run(a, g),
         Command::Bench(BenchCommand::Deform(a)) => bench::deform(a, g),
+        Command::Bench(BenchCommand::Studio(a)) => bench::studio(a, g),
         Command::Retarget(a) => retarget::run(a, g),
         Command::Offsets(a) => offsets::offsets(a, g),
         Command::Eval(a) => eval::run(a, g),
