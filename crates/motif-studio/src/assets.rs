@@ -24,7 +24,11 @@ pub const ASSETS: &[Asset] = &[
     Asset { path: "/", mime: "text/html; charset=utf-8", body: web!("index.html") },
     Asset { path: "/app.js", mime: JS, body: web!("app.js") },
     Asset { path: "/style.css", mime: "text/css; charset=utf-8", body: web!("style.css") },
-    Asset { path: "/vendor/three.module.js", mime: JS, body: web!("node_modules/three/build/three.module.js") },
+    Asset {
+        path: "/vendor/three.module.js",
+        mime: JS,
+        body: web!("node_modules/three/build/three.module.js"),
+    },
     Asset { path: "/vendor/three.core.js", mime: JS, body: web!("node_modules/three/build/three.core.js") },
     Asset {
         path: "/vendor/addons/controls/OrbitControls.js",
@@ -36,7 +40,11 @@ pub const ASSETS: &[Asset] = &[
         mime: JS,
         body: web!("node_modules/three/examples/jsm/controls/TransformControls.js"),
     },
-    Asset { path: "/vendor/LICENSE-three.txt", mime: "text/plain; charset=utf-8", body: web!("node_modules/three/LICENSE") },
+    Asset {
+        path: "/vendor/LICENSE-three.txt",
+        mime: "text/plain; charset=utf-8",
+        body: web!("node_modules/three/LICENSE"),
+    },
 ];
 
 /// The asset at a URL path.

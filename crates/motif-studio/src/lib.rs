@@ -112,7 +112,9 @@ impl Studio {
 
     /// The address it listens on.
     pub fn local_addr(&self) -> Result<SocketAddr> {
-        self.listener.local_addr().map_err(|source| StudioError::Io { what: "local address".to_string(), source })
+        self.listener
+            .local_addr()
+            .map_err(|source| StudioError::Io { what: "local address".to_string(), source })
     }
 
     /// The page's URL.

@@ -315,7 +315,13 @@ pub enum ServerMessage {
 }
 
 /// Builds a server binary message.
-pub fn encode_binary(kind: BinaryKind, seq: u32, positions: &[Point3], triangles: &[[u32; 3]], solve_ms: f32) -> Vec<u8> {
+pub fn encode_binary(
+    kind: BinaryKind,
+    seq: u32,
+    positions: &[Point3],
+    triangles: &[[u32; 3]],
+    solve_ms: f32,
+) -> Vec<u8> {
     let mut out = Vec::with_capacity(FRAME_HEADER_BYTES + positions.len() * 12 + triangles.len() * 12);
     for v in [kind as u32, seq, positions.len() as u32, triangles.len() as u32] {
         out.extend_from_slice(&v.to_le_bytes());
@@ -349,7 +355,8 @@ mod tests {
 
     #[test]
     fn messages_round_trip() {
-        let m: ClientMessage = serde_json::from_str(r#"{"type":"retarget","seq":3,"steps":[1,0,0]}"#).unwrap();
+        let m: ClientMessage =
+            serde_json::from_str(r#"{"type":"retarget","seq":3,"steps":[1,0,0]}"#).unwrap();
         assert_eq!(m, ClientMessage::Retarget { seq: 3, steps: [1, 0, 0] });
         assert!(serde_json::from_str::<ClientMessage>(r#"{"type":"nope"}"#).is_err());
         let b = encode_binary(BinaryKind::Model, 7, &[[1.0, 2.0, 3.0]], &[[0, 0, 0]], 1.5);

@@ -71,7 +71,10 @@ impl Sandbox {
         })?;
         let resolved = self.inside(path, resolved)?;
         if !resolved.is_file() {
-            return Err(StudioError::BadPath { path: shorten(path), problem: "not a regular file".to_string() });
+            return Err(StudioError::BadPath {
+                path: shorten(path),
+                problem: "not a regular file".to_string(),
+            });
         }
         Ok(resolved)
     }

@@ -126,7 +126,9 @@ impl Outbox {
     async fn reply(&self, r: Result<Vec<Out>>, request: &str) {
         match r {
             Ok(outs) => self.send_all(outs).await,
-            Err(StudioError::Cancelled) => self.text(&ServerMessage::Cancelled { job: request.to_string() }).await,
+            Err(StudioError::Cancelled) => {
+                self.text(&ServerMessage::Cancelled { job: request.to_string() }).await
+            }
             Err(e) => self.error(&e, request).await,
         }
     }
@@ -141,7 +143,11 @@ struct Latest<T> {
 
 impl<T: Default + Pending> Latest<T> {
     fn new() -> Arc<Self> {
-        Arc::new(Latest { value: Mutex::new(T::default()), notify: Notify::new(), closed: AtomicBool::new(false) })
+        Arc::new(Latest {
+            value: Mutex::new(T::default()),
+            notify: Notify::new(),
+            closed: AtomicBool::new(false),
+        })
     }
 
     fn update(&self, f: impl FnOnce(&mut T)) {
@@ -288,7 +294,8 @@ async fn deform_worker(shared: Shared, out: Outbox, slot: Arc<Latest<DeformQueue
     while let Some(q) = slot.take().await {
         if let Some(h) = q.handles {
             let s = shared.clone();
-            out.reply(blocking(move || session::set_handles(&s, &h), "set_handles").await, "set_handles").await;
+            out.reply(blocking(move || session::set_handles(&s, &h), "set_handles").await, "set_handles")
+                .await;
         }
         if let Some((seq, t)) = q.drag {
             let s = shared.clone();
@@ -361,7 +368,9 @@ async fn connection(socket: WebSocket, app: Arc<App>) {
                 // Over the protocol limit (or a broken frame): say why, then drop this client.
                 let text = e.to_string();
                 let code = if text.contains("too long") || text.contains("limit") { 1009 } else { 1002 };
-                let _ = out.0.try_send(Message::Close(Some(CloseFrame { code, reason: truncate(&text, 120).into() })));
+                let _ = out
+                    .0
+                    .try_send(Message::Close(Some(CloseFrame { code, reason: truncate(&text, 120).into() })));
                 break;
             }
         };
@@ -401,7 +410,9 @@ async fn connection(socket: WebSocket, app: Arc<App>) {
                         }
                     }
                     None => {
-                        let e = StudioError::BadMessage("an upload is [name length u32 LE][name][bytes]".to_string());
+                        let e = StudioError::BadMessage(
+                            "an upload is [name length u32 LE][name][bytes]".to_string(),
+                        );
                         out.error(&e, "upload").await;
                     }
                 }
@@ -420,7 +431,9 @@ async fn connection(socket: WebSocket, app: Arc<App>) {
                 q.handles = Some(handles);
                 q.drag = None;
             }),
-            ClientMessage::Drag { seq, transforms } => deform_slot.update(|q| q.drag = Some((seq, transforms))),
+            ClientMessage::Drag { seq, transforms } => {
+                deform_slot.update(|q| q.drag = Some((seq, transforms)))
+            }
             ClientMessage::Release => deform_slot.update(|q| q.release = true),
             ClientMessage::Retarget { seq, steps } => retarget_slot.update(|q| *q = Some((seq, steps))),
             other => {

@@ -162,7 +162,13 @@ fn model_messages(l: &Loaded, annotation: Option<&SymmetryAnnotation>) -> Vec<Ou
     ]
 }
 
-fn install(shared: &Shared, p: &JobProgress, loaded: Loaded, annotation: Option<SymmetryAnnotation>, input: Vec<PathBuf>) -> Vec<Out> {
+fn install(
+    shared: &Shared,
+    p: &JobProgress,
+    loaded: Loaded,
+    annotation: Option<SymmetryAnnotation>,
+    input: Vec<PathBuf>,
+) -> Vec<Out> {
     p.check();
     let mut s = lock(shared);
     let out = model_messages(&loaded, annotation.as_ref());
@@ -210,10 +216,8 @@ pub fn example(shared: &Shared, name: &str, p: &JobProgress) -> Result<Vec<Out>>
 
 /// Opens an uploaded file (format from the name's extension; nothing is written to disk).
 pub fn upload(shared: &Shared, name: &str, bytes: &[u8], p: &JobProgress) -> Result<Vec<Out>> {
-    let file_name = std::path::Path::new(name)
-        .file_name()
-        .map(|n| n.to_string_lossy().to_string())
-        .unwrap_or_default();
+    let file_name =
+        std::path::Path::new(name).file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default();
     let format = Format::from_path(std::path::Path::new(&file_name))?;
     if matches!(format, Format::Gltf) {
         return Err(StudioError::BadMessage(
@@ -312,8 +316,10 @@ fn check_fresh(path: &std::path::Path, given: &str, overwrite: bool) -> Result<(
 /// Saves the current annotation.
 pub fn save_annotation(shared: &Shared, path: &str, overwrite: bool) -> Result<Vec<Out>> {
     let s = lock(shared);
-    let annotation =
-        s.annotation.as_ref().ok_or_else(|| StudioError::NotReady("no annotation yet: detect or load one".to_string()))?;
+    let annotation = s
+        .annotation
+        .as_ref()
+        .ok_or_else(|| StudioError::NotReady("no annotation yet: detect or load one".to_string()))?;
     let file = s.sandbox.resolve_write(path, &s.inputs)?;
     check_fresh(&file, path, overwrite)?;
     write_json_atomic(&file, annotation)?;
@@ -334,8 +340,13 @@ fn handle_regions(handles: &[HandleSpec]) -> Result<Vec<Handle>> {
                     h.balls.len()
                 )));
             }
-            if h.balls.iter().any(|b| !(b.radius > 0.0 && b.radius.is_finite()) || b.center.iter().any(|c| !c.is_finite())) {
-                return Err(StudioError::BadMessage(format!("handle {i}: centres must be finite, radii positive")));
+            if h.balls
+                .iter()
+                .any(|b| !(b.radius > 0.0 && b.radius.is_finite()) || b.center.iter().any(|c| !c.is_finite()))
+            {
+                return Err(StudioError::BadMessage(format!(
+                    "handle {i}: centres must be finite, radii positive"
+                )));
             }
             let mut regions: Vec<Region> =
                 h.balls.iter().map(|b| Region::Sphere { center: b.center, radius: b.radius }).collect();
@@ -423,8 +434,14 @@ pub fn release(shared: &Shared) -> Result<Vec<Out>> {
         }
         None => (None, None),
     };
-    let handle_error = if d.solved { d.session.handle_fit().iter().map(|f| f.max_error).fold(0.0, f64::max) } else { 0.0 };
-    Ok(vec![Out::Text(ServerMessage::Deformed { residual, rest_residual, handle_error, solve_ms: d.last_solve_ms })])
+    let handle_error =
+        if d.solved { d.session.handle_fit().iter().map(|f| f.max_error).fold(0.0, f64::max) } else { 0.0 };
+    Ok(vec![Out::Text(ServerMessage::Deformed {
+        residual,
+        rest_residual,
+        handle_error,
+        solve_ms: d.last_solve_ms,
+    })])
 }
 
 /// Writes the deformed (or retargeted) model and, for the deformed one, its annotation as
@@ -439,9 +456,10 @@ pub fn export(shared: &Shared, path: &str, source: ExportSource, overwrite: bool
     match source {
         ExportSource::Deformed => {
             let model = match (&s.deform, &loaded.mesh) {
-                (Some(d), Some(mesh)) if d.solved => {
-                    Model::from_mesh(&TriMesh { positions: d.session.positions().to_vec(), triangles: mesh.triangles.clone() })
-                }
+                (Some(d), Some(mesh)) if d.solved => Model::from_mesh(&TriMesh {
+                    positions: d.session.positions().to_vec(),
+                    triangles: mesh.triangles.clone(),
+                }),
                 _ => loaded.model.clone(),
             };
             motif_core::io::write(&file, &model, &WriteOptions::default())?;
@@ -505,7 +523,12 @@ pub fn offsets(shared: &Shared, p: &JobProgress) -> Result<Vec<Out>> {
     if analysis.repetition.kind == Repetition::NoRepetition || principal.is_empty() {
         p.check();
         lock(shared).retarget = None;
-        return Ok(vec![Out::Text(ServerMessage::Offsets { principal: Vec::new(), cells: Vec::new(), summary, ms: ms_since(t) })]);
+        return Ok(vec![Out::Text(ServerMessage::Offsets {
+            principal: Vec::new(),
+            cells: Vec::new(),
+            summary,
+            ms: ms_since(t),
+        })]);
     }
     let options = RetargetOptions { seed, ..Default::default() };
     let session = RetargetSession::with_features(mesh, &features, &principal, &options, p)?;
@@ -540,7 +563,13 @@ pub fn retarget(shared: &Shared, seq: u32, steps: [i32; 3]) -> Result<Vec<Out>> 
             triangles: res.mesh.num_triangles(),
             ms,
         }),
-        Out::Binary(encode_binary(BinaryKind::Retargeted, seq, &res.mesh.positions, &res.mesh.triangles, ms as f32)),
+        Out::Binary(encode_binary(
+            BinaryKind::Retargeted,
+            seq,
+            &res.mesh.positions,
+            &res.mesh.triangles,
+            ms as f32,
+        )),
     ];
     r.last = Some(res.mesh);
     Ok(out)
@@ -562,7 +591,10 @@ fn detections_message(loaded: &Loaded, result: &DetectionResult) -> ServerMessag
                 }
             };
             match &inst.points {
-                Some(pts) => pts.iter().filter(|&&i| (i as usize) < positions.len()).for_each(|&i| mark(i as usize, &mut count)),
+                Some(pts) => pts
+                    .iter()
+                    .filter(|&&i| (i as usize) < positions.len())
+                    .for_each(|&i| mark(i as usize, &mut count)),
                 None => {
                     for (i, p) in positions.iter().enumerate() {
                         if (0..3).all(|k| p[k] >= inst.bbox_min[k] && p[k] <= inst.bbox_max[k]) {

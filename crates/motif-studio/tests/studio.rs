@@ -144,9 +144,17 @@ async fn hostile_messages_are_answered_and_the_server_keeps_serving() {
     // Bad handles: a negative radius, too many handles, a handle that selects nothing.
     let n = open_example(&mut ws, "fan").await;
     assert!(n > 0);
-    send(&mut ws, json!({"type": "set_handles", "handles": [{"balls": [{"center": [0, 0, 0], "radius": -1.0}]}]})).await;
+    send(
+        &mut ws,
+        json!({"type": "set_handles", "handles": [{"balls": [{"center": [0, 0, 0], "radius": -1.0}]}]}),
+    )
+    .await;
     expect_error(next_text(&mut ws).await, "radii positive");
-    send(&mut ws, json!({"type": "set_handles", "handles": [{"balls": [{"center": [90, 90, 90], "radius": 0.01}]}]})).await;
+    send(
+        &mut ws,
+        json!({"type": "set_handles", "handles": [{"balls": [{"center": [90, 90, 90], "radius": 0.01}]}]}),
+    )
+    .await;
     assert!(matches!(next_text(&mut ws).await, ServerMessage::Error { .. }));
     let many: Vec<_> = (0..65).map(|_| json!({"balls": [{"center": [0, 0, 0], "radius": 0.1}]})).collect();
     let text = json!({"type": "set_handles", "handles": many}).to_string();
@@ -155,7 +163,12 @@ async fn hostile_messages_are_answered_and_the_server_keeps_serving() {
     expect_error(next_text(&mut ws).await, "at most 64");
     // Malformed uploads: a truncated header, a name longer than the message, an unknown format,
     // a file that does not parse.
-    for bytes in [vec![1u8, 0], vec![200, 0, 0, 0, b'a'], upload("x.xyz", b"1 2 3"), upload("x.obj", b"v 1 2\nf 1 2 3\n")] {
+    for bytes in [
+        vec![1u8, 0],
+        vec![200, 0, 0, 0, b'a'],
+        upload("x.xyz", b"1 2 3"),
+        upload("x.obj", b"v 1 2\nf 1 2 3\n"),
+    ] {
         ws.send(Message::Binary(bytes.into())).await.unwrap();
         assert!(matches!(next_text(&mut ws).await, ServerMessage::Error { .. }));
     }
@@ -209,7 +222,11 @@ async fn files_outside_the_root_cannot_be_read_or_written() {
         std::os::unix::fs::symlink(&outside, s.root.join("link.obj")).unwrap();
         std::os::unix::fs::symlink(s.root.parent().unwrap(), s.root.join("up")).unwrap();
     }
-    let mut escapes = vec!["../outside.obj".to_string(), outside.display().to_string(), "./../root/../outside.obj".to_string()];
+    let mut escapes = vec![
+        "../outside.obj".to_string(),
+        outside.display().to_string(),
+        "./../root/../outside.obj".to_string(),
+    ];
     if cfg!(unix) {
         escapes.push("link.obj".to_string());
         escapes.push("up/outside.obj".to_string());
@@ -225,7 +242,10 @@ async fn files_outside_the_root_cannot_be_read_or_written() {
     // Inside the root: open, then every write that leaves it is refused.
     send(&mut ws, json!({"type": "open", "path": "fan.obj"})).await;
     assert!(matches!(next_text(&mut ws).await, ServerMessage::Model { .. }));
-    let mut writes = vec!["../written.obj".to_string(), s.root.parent().unwrap().join("written.obj").display().to_string()];
+    let mut writes = vec![
+        "../written.obj".to_string(),
+        s.root.parent().unwrap().join("written.obj").display().to_string(),
+    ];
     if cfg!(unix) {
         writes.push("up/written.obj".to_string());
         writes.push("link.obj".to_string());
@@ -429,7 +449,11 @@ fn bind_refuses_a_missing_root_and_a_model_outside_it() {
     let dir = tempfile::tempdir().unwrap();
     let missing = StudioOptions { root: dir.path().join("nope"), ..Default::default() };
     assert!(rt.block_on(Studio::bind(missing)).is_err());
-    let outside = StudioOptions { root: dir.path().to_path_buf(), model: Some("../x.obj".into()), ..Default::default() };
+    let outside = StudioOptions {
+        root: dir.path().to_path_buf(),
+        model: Some("../x.obj".into()),
+        ..Default::default()
+    };
     assert!(rt.block_on(Studio::bind(outside)).is_err());
     let _ = Path::new(".");
 }

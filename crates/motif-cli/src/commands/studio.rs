@@ -30,7 +30,8 @@ pub fn run(a: StudioArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         }
         None => None,
     };
-    let options = StudioOptions { host: a.host, port: a.port, root, model, seed: g.seed, ..Default::default() };
+    let options =
+        StudioOptions { host: a.host, port: a.port, root, model, seed: g.seed, ..Default::default() };
     let quiet = g.quiet;
     motif_studio::run(options, |studio| {
         // The URL goes to stdout (scripts read it); notes to stderr.
