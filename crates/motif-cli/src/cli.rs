@@ -64,6 +64,8 @@ pub enum Command {
     Offsets(OffsetsArgs),
     /// The offset-sparsity study (thesis 4.3): how concentrated offsets are, per category.
     Sparsity(SparsityArgs),
+    /// Find repeated building blocks in a scan or mesh by co-occurrence analysis (thesis chapter 5).
+    Detect(DetectArgs),
     /// Score building-block detections against ground truth (thesis 5.5.2): precision, recall, F,
     /// the PR curve and the stress curve; averaged over scenes when given several pairs.
     Eval(EvalArgs),
@@ -559,6 +561,68 @@ pub struct RetargetArgs {
     /// When the model has no repetition, scale it to --target-size instead of failing.
     #[arg(long)]
     pub plain_resize: bool,
+    #[command(flatten)]
+    pub json: JsonArg,
+}
+
+#[derive(Debug, Args)]
+pub struct DetectArgs {
+    /// A point cloud (PLY with normals preferred; normals are estimated when absent) or a mesh
+    /// (sampled first).
+    pub input: PathBuf,
+    /// The detection (../shared/formats/detection.md): classes, instance boxes, transforms, points.
+    #[arg(short, long, value_name = "RESULT.json")]
+    pub output: PathBuf,
+    /// A PLY of the input points with `class` and `instance` labels (-1 for background) and colours.
+    #[arg(long, value_name = "PLY")]
+    pub labels: Option<PathBuf>,
+    /// The classes as a motif_symmetry_v1 annotation of instance sets (for `motif deform`).
+    #[arg(long, value_name = "ANNOT.json")]
+    pub as_symmetry: Option<PathBuf>,
+    /// Skip the EM refinement: spectral clustering on the initial dictionary (the thesis's "SC").
+    #[arg(long)]
+    pub no_em: bool,
+    /// ε relative to the principal-axes diagonal (thesis 5.4: 0.0005 for shapes, 0.00005 for city
+    /// scans). Default: the thesis's 0.0005 or the input's own point spacing, whichever is larger.
+    #[arg(long, conflicts_with = "epsilon_abs")]
+    pub epsilon: Option<f64>,
+    /// ε in the input's units instead.
+    #[arg(long, value_name = "LENGTH")]
+    pub epsilon_abs: Option<f64>,
+    /// Threshold on the dimensionless curvature |κ₁|·4ε of features (thesis 5.4: 0.15).
+    #[arg(long, default_value_t = 0.15)]
+    pub kappa: f64,
+    /// K, dictionary size (thesis 5.4: 100).
+    #[arg(long, default_value_t = 100)]
+    pub words: usize,
+    /// σ of the matching score m(x, y) (thesis 5.4: 0.1).
+    #[arg(long, default_value_t = 0.1)]
+    pub sigma: f64,
+    /// Descriptor distance, in units of the median within-cluster distance d̂, at which the matching
+    /// score is 0.5 for σ = 0.1 (Motif's unit for the thesis's m(x, y); see motif_detect::dictionary).
+    #[arg(long, default_value_t = 1.0)]
+    pub tolerance: f64,
+    /// Minimum matching score of the sliding window (thesis 5.4: 0.5).
+    #[arg(long, default_value_t = 0.5)]
+    pub min_score: f64,
+    /// Maximum EM iterations (thesis 5.4: 5).
+    #[arg(long, default_value_t = 5)]
+    pub em_iterations: usize,
+    /// Minimum |Ψ(i, j)| of a co-occurring pair (thesis 5.4: 5 for shapes, 10 for city scans).
+    #[arg(long, default_value_t = 5)]
+    pub min_support: usize,
+    /// σ_s of eq. 5.1, in ε (thesis 5.4: 16).
+    #[arg(long, default_value_t = 16.0)]
+    pub sigma_s: f64,
+    /// Mean-shift bandwidth in the MDS embedding (thesis 5.4: 0.5).
+    #[arg(long, default_value_t = 0.5)]
+    pub bandwidth: f64,
+    /// Rounds of MDL incremental detection: at most this many classes (thesis 5.4).
+    #[arg(long, default_value_t = 5)]
+    pub classes: usize,
+    /// Points sampled on a mesh input.
+    #[arg(long, default_value_t = 300_000)]
+    pub mesh_samples: usize,
     #[command(flatten)]
     pub json: JsonArg,
 }

@@ -50,6 +50,13 @@ pub fn exit_code(err: &anyhow::Error) -> u8 {
         if let Some(e) = cause.downcast_ref::<motif_detect::DetectError>() {
             return match e {
                 motif_detect::DetectError::Plot { .. } => 1,
+                motif_detect::DetectError::Core(c) => {
+                    if c.is_bad_input() {
+                        2
+                    } else {
+                        1
+                    }
+                }
                 _ => 2,
             };
         }

@@ -42,6 +42,12 @@ pub enum DetectError {
     /// [`crate::eval::evaluate_many`] was given no scenes, so there is nothing to average.
     #[error("no scenes to evaluate: give at least one (detection, ground truth) pair")]
     NoScenes,
+    /// The input cannot be processed (NaN coordinates, mismatched normals, …).
+    #[error("{0}")]
+    InvalidInput(String),
+    /// A geometry-core operation failed (reading, sampling, curvature, …).
+    #[error(transparent)]
+    Core(#[from] motif_core::Error),
     /// A picture could not be drawn or written.
     #[error("picture {path}: {message}")]
     Plot {

@@ -15,14 +15,22 @@
 
 #![warn(missing_docs)]
 
+pub mod cooccurrence;
 pub mod detection;
+pub mod dictionary;
 pub mod error;
 pub mod eval;
+pub mod grid;
+pub mod hoc;
+pub mod instances;
+pub mod pipeline;
 pub mod plot;
+pub mod preprocess;
 
 pub use detection::{DetectedClass, DetectedInstance, DetectionResult};
 pub use error::{DetectError, Result};
 pub use eval::{EvalOptions, EvalReport, EvalSummary, evaluate, evaluate_many};
+pub use pipeline::{DetectOptions, DetectReport, Detection, Method, detect, detect_mesh};
 pub use plot::{EvalCurves, plot_pr_and_stress};
 
 /// The thesis chapter this crate implements, for reports and `--version` output.

@@ -6,6 +6,7 @@ mod convert;
 mod curvature;
 mod deform;
 mod demo;
+mod detect;
 mod eval;
 mod example;
 mod features;
@@ -46,6 +47,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Bench(BenchCommand::Studio(a)) => bench::studio(a, g),
         Command::Retarget(a) => retarget::run(a, g),
         Command::Offsets(a) => offsets::offsets(a, g),
+        Command::Detect(a) => detect::run(a, g),
         Command::Eval(a) => eval::run(a, g),
         Command::Sparsity(a) => offsets::sparsity(a, g),
         Command::Mrf(MrfCommand::Solve(a)) => mrf::solve(a, g),

@@ -1,0 +1,160 @@
+//! `motif detect`: building-block detection by co-occurrence analysis (thesis chapter 5).
+
+use motif_core::io::Model;
+use motif_core::{AttributeData, PointCloud};
+use motif_detect::pipeline::Method;
+use motif_detect::preprocess::Epsilon;
+use motif_detect::{DetectOptions, Detection};
+
+use crate::cli::{DetectArgs, GlobalArgs};
+use crate::output::{check_output, maybe_json, write_json};
+use crate::progress::Bar;
+
+/// Distinct colours for classes (Tableau 10); background points are grey.
+const PALETTE: [[u8; 3]; 10] = [
+    [214, 39, 40],
+    [31, 119, 180],
+    [44, 160, 44],
+    [255, 127, 14],
+    [148, 103, 189],
+    [140, 86, 75],
+    [227, 119, 194],
+    [188, 189, 34],
+    [23, 190, 207],
+    [127, 127, 127],
+];
+
+/// The options the command line asks for.
+pub fn options(a: &DetectArgs, g: &GlobalArgs) -> DetectOptions {
+    let mut o = DetectOptions {
+        seed: g.seed,
+        mdl_rounds: a.classes,
+        mesh_samples: a.mesh_samples,
+        ..Default::default()
+    };
+    o.preprocess.epsilon = match (a.epsilon, a.epsilon_abs) {
+        (Some(r), _) => Epsilon::Relative(r),
+        (None, Some(e)) => Epsilon::Absolute(e),
+        (None, None) => Epsilon::Auto,
+    };
+    o.preprocess.kappa_threshold = a.kappa;
+    o.dictionary.words = a.words;
+    o.dictionary.sigma = a.sigma;
+    o.dictionary.tolerance = a.tolerance;
+    o.dictionary.min_score = a.min_score;
+    o.em.iterations = a.em_iterations;
+    o.em.min_support = a.min_support;
+    o.em.sigma_s = a.sigma_s;
+    o.instances.bandwidth = a.bandwidth;
+    o.method = if a.no_em { Method::Sc } else { Method::EmSc };
+    o
+}
+
+pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    let inputs = [a.input.as_path()];
+    check_output(&a.output, &inputs, g.force)?;
+    for p in [&a.labels, &a.as_symmetry].into_iter().flatten() {
+        check_output(p, &inputs, g.force)?;
+    }
+    if let Some(j) = &a.json.json {
+        if !crate::output::json_on_stdout(&a.json.json) {
+            check_output(j, &inputs, g.force)?;
+        }
+    }
+    for (name, v) in [
+        ("--sigma", a.sigma),
+        ("--sigma-s", a.sigma_s),
+        ("--bandwidth", a.bandwidth),
+        ("--tolerance", a.tolerance),
+    ] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(crate::output::bad_input(format!("{name} must be positive, got {v}")));
+        }
+    }
+    if a.words < 2 {
+        return Err(crate::output::bad_input(format!("--words must be at least 2, got {}", a.words)));
+    }
+    let o = options(&a, g);
+    let bar = Bar::new(g.quiet);
+    let model = bar.spin("reading", || super::read_model(&a.input))?;
+    let scene = a.input.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let t = std::time::Instant::now();
+    let detection = if model.is_mesh() {
+        motif_detect::detect_mesh(&model.mesh(), &scene, &o, &bar)
+    } else {
+        motif_detect::detect(&model.vertices, &scene, &o, &bar, g.force)
+    }
+    .map_err(|e| anyhow::Error::new(e).context(format!("detecting in {}", a.input.display())))?;
+    let seconds = t.elapsed().as_secs_f64();
+    for w in &detection.report.warnings {
+        super::note(g, format!("warning: {w}"));
+    }
+    write_json(&a.output, &detection.result)?;
+    if let Some(p) = &a.labels {
+        let cloud = detection.samples.as_ref().unwrap_or(&model.vertices);
+        let labelled = labelled_cloud(cloud, &detection);
+        super::write_model(p, &Model::from_point_cloud(labelled), &inputs, g, &Default::default())?;
+    }
+    if let Some(p) = &a.as_symmetry {
+        write_json(p, &detection.as_symmetry())?;
+    }
+    if !crate::output::json_on_stdout(&a.json.json) && !g.quiet {
+        let r = &detection.report;
+        let per: Vec<String> = r.instances_per_class.iter().map(|n| n.to_string()).collect();
+        println!(
+            "{}: {} classes ({} instances) from {} points, ε = {:.4}, {} features, {} in {:.2} s",
+            a.input.display(),
+            detection.result.classes.len(),
+            if per.is_empty() { "none".to_string() } else { per.join(" + ") },
+            r.input_points,
+            r.epsilon,
+            r.features,
+            if a.no_em { "SC (no EM)" } else { "EM + SC" },
+            seconds
+        );
+        println!(
+            "stages (s): preprocess {:.2}  descriptors {:.2}  dictionary {:.2}  EM {:.2}  instances {:.2}  output {:.2}",
+            r.seconds.preprocess,
+            r.seconds.descriptors,
+            r.seconds.dictionary,
+            r.seconds.em,
+            r.seconds.instances,
+            r.seconds.output
+        );
+        eprintln!("wrote {}", a.output.display());
+    }
+    maybe_json(
+        &a.json.json,
+        &serde_json::json!({
+            "input": a.input,
+            "options": o,
+            "report": detection.report,
+            "classes": detection.result.classes.len(),
+            "seconds": seconds,
+        }),
+    )
+}
+
+/// The points with `class`/`instance` attributes (−1 for background) and class colours.
+pub fn labelled_cloud(cloud: &PointCloud, d: &Detection) -> PointCloud {
+    let mut out = cloud.clone();
+    let class: Vec<i64> = d.labels.iter().map(|l| l.map_or(-1, |(c, _)| c as i64)).collect();
+    let instance: Vec<i64> = d.labels.iter().map(|l| l.map_or(-1, |(_, i)| i as i64)).collect();
+    out.colors = Some(
+        d.labels
+            .iter()
+            .map(|l| match l {
+                Some((c, i)) => {
+                    let base = PALETTE[*c as usize % PALETTE.len()];
+                    // Alternate instance shades so neighbouring instances are told apart.
+                    let f = if i % 2 == 0 { 1.0 } else { 0.75 };
+                    [(base[0] as f64 * f) as u8, (base[1] as f64 * f) as u8, (base[2] as f64 * f) as u8]
+                }
+                None => [190, 190, 190],
+            })
+            .collect(),
+    );
+    out.set_attribute("class", AttributeData::Int(class));
+    out.set_attribute("instance", AttributeData::Int(instance));
+    out
+}

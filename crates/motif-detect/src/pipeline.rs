@@ -1,0 +1,433 @@
+//! The whole detector (thesis 5.3–5.4): pre-processing, HOC descriptors, dictionary, EM
+//! co-occurrence, spectral instance detection, repeated as the MDL incremental scheme, with the
+//! result in the shared detection schema plus per-point labels and a symmetry annotation.
+//!
+//! One-shot entry points: [`detect`] for point clouds, [`detect_mesh`] for meshes (sampled first).
+
+use std::time::Instant;
+
+use motif_core::procedural::{Region, Symmetry, SymmetryAnnotation, SymmetryInstance, SymmetryKind};
+use motif_core::progress::Progress;
+use motif_core::sampling::sample_surface;
+use motif_core::spatial::KdTree;
+use motif_core::{PointCloud, TriMesh};
+use serde::{Deserialize, Serialize};
+
+use crate::cooccurrence::{EmOptions, EmReport, match_all, run_em};
+use crate::detection::{DetectedClass, DetectedInstance, DetectionResult};
+use crate::dictionary::{DictionaryOptions, build};
+use crate::error::{DetectError, Result};
+use crate::hoc::{HocOptions, compute};
+use crate::instances::{Class, ClusteringReport, InstanceOptions, detect_instances};
+use crate::preprocess::{Feature, PreprocessOptions, Preprocessed, preprocess};
+
+/// Which variant of the detector runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Method {
+    /// EM co-occurrence refinement, then spectral clustering (the thesis's "EM + SC").
+    #[default]
+    EmSc,
+    /// Spectral clustering on the initial dictionary, no EM (the thesis's "SC" baseline, 5.5.3).
+    Sc,
+}
+
+/// Options of [`detect`]: every parameter of thesis 5.3–5.4, grouped by stage.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct DetectOptions {
+    /// Resampling, curvature and features (5.3.1, 5.4).
+    pub preprocess: PreprocessOptions,
+    /// The HOC descriptor (5.4).
+    pub hoc: HocOptions,
+    /// The dictionary and the matching score (5.3.1, 5.4).
+    pub dictionary: DictionaryOptions,
+    /// EM co-occurrence detection (5.3.2, 5.4).
+    pub em: EmOptions,
+    /// Spectral clustering and the star model (5.3.3, 5.4).
+    pub instances: InstanceOptions,
+    /// EM + SC or the SC baseline.
+    pub method: Method,
+    /// Rounds of the MDL incremental scheme (5.4): each keeps the largest class and removes its
+    /// features. Default 5 (the thesis's Fig. 5.6 found five classes).
+    pub mdl_rounds: usize,
+    /// Fewer features than this: nothing to detect (an empty result, not an error). Default 40.
+    pub min_features: usize,
+    /// Meshes are sampled with this many points before detection. Default 300,000.
+    pub mesh_samples: usize,
+    /// Seed of every random choice (resampling order, k-means++, mesh sampling).
+    pub seed: u64,
+}
+
+impl Default for DetectOptions {
+    fn default() -> Self {
+        DetectOptions {
+            preprocess: PreprocessOptions::default(),
+            hoc: HocOptions::default(),
+            dictionary: DictionaryOptions::default(),
+            em: EmOptions::default(),
+            instances: InstanceOptions::default(),
+            method: Method::EmSc,
+            mdl_rounds: 5,
+            min_features: 40,
+            mesh_samples: 300_000,
+            seed: 0,
+        }
+    }
+}
+
+/// One MDL round.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct RoundReport {
+    /// Features entering the round.
+    pub features: usize,
+    /// k-means clusters used.
+    pub k: usize,
+    /// Words with at least two matches after the sliding window.
+    pub words: usize,
+    /// Members per word after the sliding window: (median, maximum).
+    pub word_sizes: (usize, usize),
+    /// Members per word after EM: (median, maximum).
+    pub word_sizes_after_em: (usize, usize),
+    /// d̂, the median within-cluster L1 distance (the matching score's unit).
+    pub descriptor_unit: f64,
+    /// The EM run (empty for the SC baseline).
+    pub em: EmReport,
+    /// Spectral clustering.
+    pub clustering: ClusteringReport,
+    /// Instances of the class kept in this round (0 when the round found nothing).
+    pub kept_instances: usize,
+    /// Seconds in the dictionary, EM and instance stages.
+    pub seconds: [f64; 3],
+}
+
+/// Timings and counts of a whole detection, for `--json`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct DetectReport {
+    /// Input points.
+    pub input_points: usize,
+    /// ε in input units.
+    pub epsilon: f64,
+    /// The principal-axes diagonal ε is relative to.
+    pub diagonal: f64,
+    /// Points after resampling.
+    pub resampled_points: usize,
+    /// Salient features.
+    pub features: usize,
+    /// Whether normals were estimated.
+    pub normals_estimated: bool,
+    /// The MDL rounds.
+    pub rounds: Vec<RoundReport>,
+    /// Classes found, instances per class.
+    pub instances_per_class: Vec<usize>,
+    /// Seconds per stage: preprocess, descriptors, dictionary, EM, instances, output.
+    pub seconds: StageSeconds,
+    /// Warnings, in words.
+    pub warnings: Vec<String>,
+}
+
+/// Wall-clock seconds per stage.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct StageSeconds {
+    /// Resampling, normals, curvature, features.
+    pub preprocess: f64,
+    /// HOC descriptors.
+    pub descriptors: f64,
+    /// k-means and sliding windows (all rounds).
+    pub dictionary: f64,
+    /// EM (all rounds).
+    pub em: f64,
+    /// Clustering and star model (all rounds).
+    pub instances: f64,
+    /// Point labels and boxes.
+    pub output: f64,
+    /// Everything.
+    pub total: f64,
+}
+
+/// A detection: the shared-schema result, per-point labels and the internals.
+#[derive(Debug, Clone)]
+pub struct Detection {
+    /// The result in the schema of `../shared/formats/detection.md` (instance points are input
+    /// indices).
+    pub result: DetectionResult,
+    /// Per input point: (class, instance), or `None` for background.
+    pub labels: Vec<Option<(u32, u32)>>,
+    /// The classes with their star models.
+    pub classes: Vec<Class>,
+    /// The features (frames canonicalised).
+    pub features: Vec<Feature>,
+    /// Counts and timings.
+    pub report: DetectReport,
+    /// For a mesh input, the sampled points the labels and instance points refer to.
+    pub samples: Option<PointCloud>,
+}
+
+impl Detection {
+    /// The classes as a `motif_symmetry_v1` annotation of instance sets (regions are the instance
+    /// boxes), so a detection can drive symmetry-preserving deformation.
+    pub fn as_symmetry(&self) -> SymmetryAnnotation {
+        let mut a = SymmetryAnnotation::default();
+        for (ci, c) in self.result.classes.iter().enumerate() {
+            let instances = c
+                .instances
+                .iter()
+                .map(|i| SymmetryInstance {
+                    region: Region::Aabb { min: i.bbox_min, max: i.bbox_max },
+                    transform: i.transform.unwrap_or(motif_core::geometry::IDENTITY4),
+                })
+                .collect();
+            a.symmetries.push(Symmetry {
+                name: c.name.clone().unwrap_or_else(|| format!("class_{ci}")),
+                kind: SymmetryKind::Instances { instances },
+            });
+        }
+        a
+    }
+}
+
+/// Detects building blocks in a mesh: samples `mesh_samples` points on its surface (with face
+/// normals) and runs [`detect`]; instance point indices refer to those samples.
+pub fn detect_mesh(
+    mesh: &TriMesh,
+    scene: &str,
+    o: &DetectOptions,
+    progress: &dyn Progress,
+) -> Result<Detection> {
+    let s = sample_surface(mesh, o.mesh_samples.max(100), o.seed)?;
+    let mut cloud = PointCloud::from_positions(s.points);
+    cloud.normals = Some(s.normals);
+    let mut d = detect(&cloud, scene, o, progress, false)?;
+    d.samples = Some(cloud);
+    Ok(d)
+}
+
+/// Detects building blocks in a point cloud (thesis 5.3–5.4). `force` lifts the limit on the
+/// resampled size. An input with too few features yields an empty result and a warning.
+pub fn detect(
+    cloud: &PointCloud,
+    scene: &str,
+    o: &DetectOptions,
+    progress: &dyn Progress,
+    force: bool,
+) -> Result<Detection> {
+    let t0 = Instant::now();
+    let mut report = DetectReport { input_points: cloud.len(), ..Default::default() };
+    progress.start("resample, normals, curvature, features", 0);
+    let mut popts = o.preprocess.clone();
+    popts.seed = o.seed;
+    let pre = preprocess(cloud, &popts, force)?;
+    progress.finish();
+    report.seconds.preprocess = t0.elapsed().as_secs_f64();
+    report.epsilon = pre.epsilon;
+    report.diagonal = pre.diagonal;
+    report.resampled_points = pre.points.len();
+    report.features = pre.features.len();
+    report.normals_estimated = pre.normals_estimated;
+    report.warnings.extend(pre.warnings.iter().cloned());
+    let empty = |report: DetectReport, features: Vec<Feature>| Detection {
+        result: DetectionResult { scene: scene.to_string(), classes: Vec::new() },
+        labels: vec![None; cloud.len()],
+        classes: Vec::new(),
+        features,
+        report,
+        samples: None,
+    };
+    if pre.features.len() < o.min_features.max(8) {
+        report.warnings.push(format!(
+            "only {} salient features (need {}): too few for a dictionary, nothing detected; \
+             try a smaller ε or a lower kappa threshold",
+            pre.features.len(),
+            o.min_features.max(8)
+        ));
+        report.seconds.total = t0.elapsed().as_secs_f64();
+        return Ok(empty(report, pre.features));
+    }
+    let t1 = Instant::now();
+    progress.start("HOC descriptors", 0);
+    let mut features = pre.features.clone();
+    let desc = compute(&pre, &mut features, &o.hoc);
+    progress.finish();
+    report.seconds.descriptors = t1.elapsed().as_secs_f64();
+
+    let eps = pre.epsilon;
+    let mut active: Vec<bool> = vec![true; features.len()];
+    let mut classes: Vec<Class> = Vec::new();
+    for round in 0..o.mdl_rounds.max(1) {
+        let ids: Vec<usize> = (0..features.len()).filter(|&f| active[f]).collect();
+        if ids.len() < o.min_features.max(8) {
+            break;
+        }
+        progress.start(
+            &format!("MDL round {}: dictionary, EM, instances", round + 1),
+            3 + o.em.iterations as u64,
+        );
+        let (found, mut rr) = run_round(&pre, &features, &desc, &ids, o, round, progress);
+        progress.finish();
+        report.seconds.dictionary += rr.seconds[0];
+        report.seconds.em += rr.seconds[1];
+        report.seconds.instances += rr.seconds[2];
+        let Some(class) = found else {
+            report.rounds.push(rr);
+            break;
+        };
+        rr.kept_instances = class.instances.len();
+        report.rounds.push(rr);
+        // Remove the features the kept class covers (5.4).
+        for &f in &ids {
+            if (0..class.instances.len()).any(|k| class.contains(k, features[f].position)) {
+                active[f] = false;
+            }
+        }
+        for inst in &class.instances {
+            for &f in &inst.features {
+                active[f] = false;
+            }
+        }
+        classes.push(class);
+    }
+
+    let t5 = Instant::now();
+    progress.start("labels and boxes", 0);
+    let (result, labels) = to_result(cloud, scene, &classes, &pre)?;
+    progress.finish();
+    report.seconds.output = t5.elapsed().as_secs_f64();
+    report.instances_per_class = classes.iter().map(|c| c.instances.len()).collect();
+    report.seconds.total = t0.elapsed().as_secs_f64();
+    let _ = eps;
+    Ok(Detection { result, labels, classes, features, report, samples: None })
+}
+
+/// One MDL round over the active features `ids`: returns the largest class (in global feature
+/// indices) and the round's report.
+fn run_round(
+    pre: &Preprocessed,
+    features: &[Feature],
+    desc: &crate::hoc::Descriptors,
+    ids: &[usize],
+    o: &DetectOptions,
+    round: usize,
+    progress: &dyn Progress,
+) -> (Option<Class>, RoundReport) {
+    let eps = pre.epsilon;
+    let mut rr = RoundReport { features: ids.len(), ..Default::default() };
+    // Work on the sub-problem of active features; map back at the end.
+    let sub_features: Vec<Feature> = ids.iter().map(|&f| features[f]).collect();
+    let mut sub_desc = crate::hoc::Descriptors { data: Vec::with_capacity(ids.len() * 2 * crate::hoc::DIM) };
+    for &f in ids {
+        sub_desc.data.extend_from_slice(desc.row(f, 0));
+        sub_desc.data.extend_from_slice(desc.row(f, 1));
+    }
+    let t = Instant::now();
+    let dict = build(&sub_features, &sub_desc, eps, &o.dictionary, o.seed.wrapping_add(round as u64));
+    rr.k = dict.k;
+    rr.words = dict.words.len();
+    rr.descriptor_unit = dict.matcher.unit;
+    rr.seconds[0] = t.elapsed().as_secs_f64();
+    progress.inc(1);
+    let mut words = dict.words;
+    rr.word_sizes = size_stats(&words);
+    let t = Instant::now();
+    if o.method == Method::EmSc {
+        rr.em = run_em(&mut words, &sub_features, &sub_desc, &dict.matcher, eps, &o.em, |_| progress.inc(1));
+    }
+    rr.word_sizes_after_em = size_stats(&words);
+    let matches = match_all(&words, &sub_features, eps, &o.em);
+    rr.seconds[1] = t.elapsed().as_secs_f64();
+    progress.inc(1);
+    let t = Instant::now();
+    let (mut classes, cr) = detect_instances(
+        &words,
+        &matches,
+        &sub_features,
+        eps,
+        o.em.match_radius,
+        o.em.min_support,
+        &o.instances,
+    );
+    rr.clustering = cr;
+    rr.seconds[2] = t.elapsed().as_secs_f64();
+    progress.inc(1);
+    if classes.is_empty() {
+        return (None, rr);
+    }
+    let mut c = classes.swap_remove(0);
+    for inst in &mut c.instances {
+        inst.centre = ids[inst.centre];
+        for f in &mut inst.features {
+            *f = ids[*f];
+        }
+    }
+    (Some(c), rr)
+}
+
+fn size_stats(words: &[crate::dictionary::Word]) -> (usize, usize) {
+    let mut s: Vec<usize> = words.iter().map(|w| w.members.len()).collect();
+    s.sort_unstable();
+    (s.get(s.len() / 2).copied().unwrap_or(0), s.last().copied().unwrap_or(0))
+}
+
+/// The shared-schema result and per-point labels: an input point belongs to the first instance
+/// (in class order) whose oriented box contains it.
+fn to_result(
+    cloud: &PointCloud,
+    scene: &str,
+    classes: &[Class],
+    pre: &Preprocessed,
+) -> Result<(DetectionResult, Vec<Option<(u32, u32)>>)> {
+    let mut labels: Vec<Option<(u32, u32)>> = vec![None; cloud.len()];
+    let tree = if classes.is_empty() { None } else { Some(KdTree::new(&cloud.positions)?) };
+    let mut out = Vec::new();
+    for (ci, c) in classes.iter().enumerate() {
+        let first = c.instances.first().map(|i| invert_rigid(&i.frame));
+        let mut instances = Vec::new();
+        for (k, inst) in c.instances.iter().enumerate() {
+            let centre = inst.aabb.center();
+            let r = inst.aabb.diagonal() / 2.0;
+            let mut pts: Vec<u32> = tree
+                .as_ref()
+                .map(|t| t.within_unsorted(centre, r))
+                .unwrap_or_default()
+                .into_iter()
+                .filter(|nb| c.contains(k, cloud.positions[nb.index]))
+                .map(|nb| nb.index as u32)
+                .collect();
+            pts.sort_unstable();
+            for &p in &pts {
+                if labels[p as usize].is_none() {
+                    labels[p as usize] = Some((ci as u32, k as u32));
+                }
+            }
+            let transform = first.map(|inv| motif_core::geometry::mat4_mul(&inst.frame, &inv));
+            instances.push(DetectedInstance {
+                bbox_min: inst.aabb.min,
+                bbox_max: inst.aabb.max,
+                transform,
+                points: Some(pts),
+            });
+        }
+        out.push(DetectedClass { name: Some(format!("class_{ci}")), instances });
+    }
+    let _ = pre;
+    if cloud.positions.len() > u32::MAX as usize {
+        return Err(DetectError::InvalidInput("more than 2³² points".into()));
+    }
+    Ok((DetectionResult { scene: scene.to_string(), classes: out }, labels))
+}
+
+/// Inverse of a rigid 4×4 transform.
+fn invert_rigid(m: &motif_core::geometry::Mat4) -> motif_core::geometry::Mat4 {
+    let mut r = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            r[i][j] = m[j][i];
+        }
+    }
+    let t = [m[0][3], m[1][3], m[2][3]];
+    let rt = [
+        -(r[0][0] * t[0] + r[0][1] * t[1] + r[0][2] * t[2]),
+        -(r[1][0] * t[0] + r[1][1] * t[1] + r[1][2] * t[2]),
+        -(r[2][0] * t[0] + r[2][1] * t[1] + r[2][2] * t[2]),
+    ];
+    motif_core::geometry::mat4_from_rt(r, rt)
+}
