@@ -42,11 +42,6 @@ pub enum StudioError {
     /// The computation was cancelled by the client.
     #[error("cancelled")]
     Cancelled,
-    /// Building-block detection is not part of this build yet.
-    #[error(
-        "building-block detection (motif_detect) is not available in this build yet: load a detection RESULT.json instead"
-    )]
-    DetectionUnavailable,
     /// Reading, writing or parsing a model or a JSON file failed.
     #[error(transparent)]
     Core(#[from] motif_core::Error),

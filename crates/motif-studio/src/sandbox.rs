@@ -100,7 +100,7 @@ impl Sandbox {
             }
             Ok(m) if m.is_dir() => return Err(bad("is a folder")),
             Ok(_) => {
-                if inputs.iter().any(|i| *i == target) {
+                if inputs.contains(&target) {
                     return Err(bad("refusing to overwrite a file this session read; choose another name"));
                 }
             }

@@ -493,7 +493,7 @@ pub fn cells_along(mesh: &TriMesh, offsets: &[Point3]) -> Vec<usize> {
         .iter()
         .map(|o| {
             let len = norm(*o);
-            if !(len > 0.0) {
+            if len.is_nan() || len <= 0.0 {
                 return 0;
             }
             let d = scale(*o, 1.0 / len);
@@ -625,19 +625,37 @@ pub fn load_detections(shared: &Shared, path: &str) -> Result<Vec<Out>> {
     Ok(vec![Out::Text(detections_message(&loaded, &result))])
 }
 
-/// Building-block detection of a model: the one place the detection pipeline is called from.
-///
-/// `motif_detect` has no detector in this build yet (it holds the result schema and the
-/// evaluation only), so this says so; the page can still show a RESULT.json.
-pub fn detect_building_blocks(_model: &Model, progress: &dyn Progress) -> Result<DetectionResult> {
-    progress.start("building-block detection", 0);
-    Err(StudioError::DetectionUnavailable)
+/// Building-block detection of a model (`motif_detect`, thesis chapter 5): the one place the
+/// detection pipeline is called from. Meshes are sampled on their surface by
+/// [`motif_detect::detect_mesh`]; the instance point lists then index those samples, not the
+/// mesh's vertices, so they are dropped and the vertices are coloured by the instance boxes.
+pub fn detect_building_blocks(
+    model: &Model,
+    name: &str,
+    seed: u64,
+    progress: &dyn Progress,
+) -> Result<DetectionResult> {
+    let options = motif_detect::DetectOptions { seed, ..Default::default() };
+    if model.is_mesh() {
+        let mut d = motif_detect::detect_mesh(&model.mesh(), name, &options, progress)?;
+        for c in &mut d.result.classes {
+            for i in &mut c.instances {
+                i.points = None;
+            }
+        }
+        Ok(d.result)
+    } else {
+        Ok(motif_detect::detect(&model.vertices, name, &options, progress, false)?.result)
+    }
 }
 
 /// Runs building-block detection on the current model and shows the result.
 pub fn detect(shared: &Shared, p: &JobProgress) -> Result<Vec<Out>> {
-    let loaded = lock(shared).loaded()?;
-    let result = detect_building_blocks(&loaded.model, p)?;
+    let (loaded, seed) = {
+        let s = lock(shared);
+        (s.loaded()?, s.seed)
+    };
+    let result = detect_building_blocks(&loaded.model, &loaded.name, seed, p)?;
     p.check();
     Ok(vec![Out::Text(detections_message(&loaded, &result))])
 }
