@@ -76,6 +76,25 @@ pub enum Command {
     Example(ExampleArgs),
     /// Run everything Motif can do, end to end, on generated examples, and say what happened.
     Demo(DemoArgs),
+    /// A local web app: open a model, see its symmetries and detections, deform it with the mouse,
+    /// resize it along its repetitions, export. Prints the URL to open.
+    Studio(StudioArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct StudioArgs {
+    /// A model (under --root) every new page opens first.
+    pub model: Option<PathBuf>,
+    /// TCP port (default: a free port chosen by the system).
+    #[arg(long, default_value_t = 0)]
+    pub port: u16,
+    /// The only folder the studio reads and writes files in (default: the current directory).
+    #[arg(long, default_value = ".")]
+    pub root: PathBuf,
+    /// Address to listen on. The default 127.0.0.1 keeps the studio on this machine; any other
+    /// address lets the network read and write files under --root.
+    #[arg(long, default_value = "127.0.0.1")]
+    pub host: std::net::IpAddr,
 }
 
 /// Where a JSON report goes: `--json` alone prints it on stdout, `--json FILE` writes a file.
@@ -434,6 +453,20 @@ pub struct DeformArgs {
 pub enum BenchCommand {
     /// Thesis Table 3.1: sizes, prefactor, solve (5 iterations), lift and frames per second.
     Deform(BenchDeformArgs),
+    /// The studio's end-to-end frame time: drags a handle on a generated model in headless
+    /// Chromium (needs scripts/studio-browser-setup.sh) and prints the median of solve, transfer,
+    /// upload + draw.
+    Studio(BenchStudioArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct BenchStudioArgs {
+    /// Mouse-move steps of the drag (frames are fewer when solves are slower than the mouse).
+    #[arg(long, default_value_t = 200)]
+    pub steps: usize,
+    /// Generated example to drag (see `motif example --list`).
+    #[arg(long, default_value = "windmill_100k")]
+    pub example: String,
 }
 
 #[derive(Debug, Args)]

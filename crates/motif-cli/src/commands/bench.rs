@@ -250,3 +250,28 @@ pub fn deform(a: BenchDeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     }
     maybe_json(&a.json.json, &report)
 }
+
+/// `motif bench studio`: runs `crates/motif-studio/e2e/bench.mjs` (playwright-core driving
+/// Debian's Chromium) against this binary's `motif studio` and passes its table through. The
+/// script lives in the source tree: this benchmark is for developers, like `cargo bench`.
+pub fn studio(a: crate::cli::BenchStudioArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../motif-studio/e2e/bench.mjs");
+    let modules = script.with_file_name("node_modules").join("playwright-core");
+    if !modules.exists() {
+        return Err(crate::output::bad_input(format!(
+            "{} is missing: run scripts/studio-browser-setup.sh first (installs chromium and playwright-core)",
+            modules.display()
+        )));
+    }
+    let exe = std::env::current_exe()?;
+    let status = std::process::Command::new("node")
+        .arg(&script)
+        .arg(&exe)
+        .args(["--steps", &a.steps.to_string(), "--example", &a.example, "--seed", &g.seed.to_string()])
+        .status()
+        .map_err(|e| anyhow::anyhow!("cannot run node ({e}); install Node.js (Debian: nodejs)"))?;
+    if !status.success() {
+        anyhow::bail!("the studio benchmark failed ({status})");
+    }
+    Ok(())
+}

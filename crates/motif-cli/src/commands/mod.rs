@@ -16,6 +16,7 @@ mod normals;
 mod offsets;
 mod retarget;
 mod sample;
+mod studio;
 mod symmetry;
 
 use std::path::Path;
@@ -43,6 +44,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Symmetry(SymmetryCommand::Check(a)) => symmetry::check(a, g),
         Command::Deform(a) => deform::run(a, g),
         Command::Bench(BenchCommand::Deform(a)) => bench::deform(a, g),
+        Command::Bench(BenchCommand::Studio(a)) => bench::studio(a, g),
         Command::Retarget(a) => retarget::run(a, g),
         Command::Offsets(a) => offsets::offsets(a, g),
         Command::Detect(a) => detect::run(a, g),
@@ -52,6 +54,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Mrf(MrfCommand::Generate(a)) => mrf::generate(a, g),
         Command::Example(a) => example::run(a, g),
         Command::Demo(a) => demo::run(a, g),
+        Command::Studio(a) => studio::run(a, g),
     }
 }
 

@@ -1,0 +1,141 @@
+// End-to-end test of the studio in a real browser (playwright-core driving /usr/bin/chromium):
+// deform a generated windmill with the mouse, export and reload it, resize a generated shelf by a
+// step, show detections on a generated facade scan, detect the symmetries of a fan. Screenshots
+// of every step go to target/studio-e2e/.
+//
+//   node crates/motif-studio/e2e/studio.e2e.mjs [path/to/motif]
+import { execFileSync } from 'node:child_process';
+import { mkdirSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
+import { dirname, join, resolve } from 'node:path';
+import { fileURLToPath } from 'node:url';
+import { launchBrowser, startStudio, until } from './common.mjs';
+
+const repo = resolve(dirname(fileURLToPath(import.meta.url)), '../../..');
+const target = process.env.CARGO_TARGET_DIR || join(repo, 'target');
+const motif = resolve(process.argv[2] || join(target, 'debug/motif'));
+const out = join(repo, 'target/studio-e2e');
+const root = join(out, 'root');
+rmSync(root, { recursive: true, force: true });
+mkdirSync(root, { recursive: true });
+
+// Inputs made by the CLI: a facade, its ground truth as a detection RESULT.json, and a scan of it.
+execFileSync(motif, ['example', 'facade', join(root, 'facade.obj'), '--structure', join(root, 'facade.structure.json'), '--quiet']);
+execFileSync(motif, ['sample', join(root, 'facade.obj'), join(root, 'facade_scan.ply'), '--count', '30000', '--quiet']);
+const structure = JSON.parse(readFileSync(join(root, 'facade.structure.json'), 'utf8'));
+writeFileSync(join(root, 'RESULT.json'), JSON.stringify({ scene: 'facade_scan.ply', classes: structure.instances }));
+
+const { url, proc } = await startStudio(motif, root);
+const context = await launchBrowser();
+const page = context.pages()[0] || (await context.newPage());
+const pageErrors = [];
+page.on('pageerror', (e) => pageErrors.push(e.message));
+
+let passed = 0, failed = 0;
+function check(cond, what) {
+  if (cond) { passed++; console.log(`ok   ${what}`); } else { failed++; console.log(`FAIL ${what}`); }
+}
+async function shot(name) { await page.waitForTimeout(300); await page.screenshot({ path: join(out, name) }); }
+async function clickWorld(p, opts = {}) {
+  const s = await page.evaluate((q) => window.motif.project(q), p);
+  await page.mouse.click(s.x, s.y, opts);
+}
+
+try {
+  // 1. Windmill: two handles (tower foot fixed, top blade tip moved), dragged with the gizmo.
+  await page.goto(`${url}?example=windmill`);
+  let st = await until(page, (s) => s.vertices > 0 && s.name === 'windmill');
+  check(st.annotation && st.annotation.mirrors > 0 && st.annotation.axes > 0, `windmill opened with its annotation (${JSON.stringify(st.annotation)})`);
+  await shot('01-windmill.png');
+  const [lo, hi] = st.bbox;
+  const cx = (lo[0] + hi[0]) / 2, cz = (lo[2] + hi[2]) / 2;
+  // Front of the tower near its foot, and the top blade near its tip (both on the surface seen).
+  const foot = await page.evaluate(([y, z]) => {
+    // The rest vertex nearest to the front of the tower foot.
+    let best = 0, bd = Infinity;
+    for (let i = 0; i < window.motif.state.vertices; i++) {
+      const v = window.motif.restVertex(i);
+      const d = Math.abs(v[1] - y) + Math.abs(v[2] - z) + Math.abs(v[0]);
+      if (d < bd) { bd = d; best = i; }
+    }
+    return window.motif.restVertex(best);
+  }, [lo[1] + 0.05 * (hi[1] - lo[1]), hi[2]]);
+  await clickWorld([cx, foot[1] + 0.3, foot[2] - 0.05]);
+  st = await until(page, (s) => s.handles === 1);
+  const tip = await page.evaluate((ymax) => {
+    let best = 0;
+    for (let i = 0; i < window.motif.state.vertices; i++) if (window.motif.restVertex(i)[1] > window.motif.restVertex(best)[1]) best = i;
+    return window.motif.restVertex(best);
+  }, hi[1]);
+  await clickWorld([tip[0], tip[1] - 0.4, tip[2] - 0.05]);
+  st = await until(page, (s) => s.handles === 2 && s.framesReceived > 0);
+  check(st.handleSamples.every((k) => k > 0), `two handles picked by clicking (samples ${st.handleSamples})`);
+  const g = await page.evaluate(() => window.motif.gizmoScreen());
+  await page.mouse.move(g.x, g.y);
+  await page.mouse.down();
+  for (let i = 1; i <= 12; i++) {
+    await page.mouse.move(g.x + 7 * i, g.y + 3 * i);
+    await page.waitForTimeout(30);
+  }
+  await page.mouse.up();
+  st = await until(page, (s) => s.released > 0 && s.symmetryResidual !== null);
+  check(st.maxDisplacement > 0.01, `dragging the gizmo deformed the mesh (largest move ${(100 * st.maxDisplacement).toFixed(1)}% of the diagonal, ${st.framesReceived} frames)`);
+  check(st.symmetryResidual < 1e-6, `symmetry residual after the drag ${st.symmetryResidual} (~0)`);
+  check(st.medianFrameMs > 0, `frame time shown (median ${st.medianFrameMs && st.medianFrameMs.toFixed(1)} ms)`);
+  await shot('02-windmill-deformed.png');
+
+  // 2. Export the deformed windmill with its annotation, open it again.
+  await page.fill('#export-path', 'windmill-deformed.obj');
+  await page.click('#export');
+  st = await until(page, (s) => s.saved.includes('windmill-deformed.obj'));
+  check(st.saved.includes('windmill-deformed.sym.json'), `exported ${st.saved.join(', ')}`);
+  await page.fill('#open-path', 'windmill-deformed.obj');
+  await page.click('#open-btn');
+  st = await until(page, (s) => s.name === 'windmill-deformed.obj');
+  check(st.vertices === 1064 && st.annotation && st.annotation.symmetries === 6, `reloaded the export: ${st.vertices} vertices, annotation with ${st.annotation && st.annotation.symmetries} symmetries`);
+  await shot('03-export-reloaded.png');
+
+  // 3. Shelf: principal offsets, one more cell along the first.
+  await page.selectOption('#example-select', 'shelf');
+  await page.click('#example-open');
+  st = await until(page, (s) => s.name === 'shelf');
+  await page.click('#find-offsets');
+  st = await until(page, (s) => s.offsets !== null);
+  check(st.offsets.principal === 2 && st.totalCells === 12, `shelf: ${st.offsets.principal} principal offsets, cells ${st.cells.join(' x ')}`);
+  await page.$eval('#step-0', (el) => { el.value = '1'; el.dispatchEvent(new Event('input')); });
+  st = await until(page, (s) => s.retargetVersion > 0);
+  check(st.totalCells === 15 && st.cells[0] === 5, `one step along offset 0: cells ${st.cells.join(' x ')} = ${st.totalCells}`);
+  await shot('04-shelf-resized.png');
+
+  // 4. Facade scan with detections from a RESULT.json.
+  await page.fill('#open-path', 'facade_scan.ply');
+  await page.click('#open-btn');
+  st = await until(page, (s) => s.name === 'facade_scan.ply');
+  await page.fill('#detections-path', 'RESULT.json');
+  await page.click('#load-detections');
+  st = await until(page, (s) => s.detections !== null);
+  check(st.detections.classes === structure.instances.length && st.detections.coloured > 0,
+    `detections shown: ${st.detections.classes} classes, ${st.detections.instances} boxes, ${st.detections.coloured} coloured points`);
+  await shot('05-facade-detections.png');
+
+  // 5. Symmetry detection on the fan, shown as planes and axes.
+  await page.selectOption('#example-select', 'fan');
+  await page.click('#example-open');
+  await until(page, (s) => s.name === 'fan');
+  await page.click('#show-symmetry'); // hide the generator's own annotation ...
+  await page.click('#show-symmetry'); // ... and show again: the checkbox works both ways
+  await page.click('#detect-symmetry');
+  st = await until(page, (s) => s.busy === null && s.annotation !== null && s.annotation.maxResidual !== null);
+  check(st.annotation.mirrors > 0 && st.annotation.axes > 0 && st.annotation.ok, `fan symmetry detected: ${JSON.stringify(st.annotation)}`);
+  await shot('06-fan-symmetry.png');
+  check(pageErrors.length === 0, `no page errors ${pageErrors.join('; ')}`);
+} catch (e) {
+  failed++;
+  console.log(`FAIL ${e.message}`);
+  await page.screenshot({ path: join(out, 'failure.png') }).catch(() => {});
+} finally {
+  await context.close();
+  proc.kill();
+}
+console.log(`screenshots in ${out}`);
+console.log(`${passed} passed, ${failed} failed`);
+process.exit(failed ? 1 : 0);

@@ -1,0 +1,661 @@
+//! One client's state and the operations on it. Every operation is a plain blocking function
+//! that calls the library crates and returns the messages to send; the server runs them on
+//! blocking threads. Nothing here is an algorithm of its own: models are read by `motif_core::io`,
+//! symmetries come from `motif_deform::symmetry_detect` and `check_annotation`, deformation from
+//! `DeformSession`, resizing from `motif_retarget`, detections from `motif_detect`.
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::Instant;
+
+use motif_core::geometry::{Mat4, dot, norm, scale};
+use motif_core::io::{Format, Model, WriteOptions};
+use motif_core::procedural::{Region, SymmetryAnnotation};
+use motif_core::progress::{NoProgress, Progress};
+use motif_core::{Point3, TriMesh};
+use motif_deform::symmetry_detect::{SymmetryDetectOptions, detect_symmetries_with_progress};
+use motif_deform::{DeformOptions, DeformSession, Handle, SymmetryMaps, check_annotation};
+use motif_detect::DetectionResult;
+use motif_retarget::offsets::{OffsetOptions, Repetition, analyze_features, prepare_features};
+use motif_retarget::retarget::{RetargetOptions, RetargetSession, orient_offsets};
+
+use crate::cancel::JobProgress;
+use crate::error::{Result, StudioError};
+use crate::protocol::{
+    BinaryKind, ClassSummary, ExportSource, GroupSummary, HandleSpec, ServerMessage, encode_binary,
+};
+use crate::sandbox::{Sandbox, shorten};
+
+/// A message to send: JSON text or a binary geometry frame.
+#[derive(Debug)]
+pub enum Out {
+    /// A JSON message.
+    Text(ServerMessage),
+    /// A binary message (see [`crate::protocol`]).
+    Binary(Vec<u8>),
+}
+
+/// Most handles in one handle set, and balls in one handle.
+const MAX_HANDLES: usize = 64;
+const MAX_BALLS: usize = 256;
+
+/// The opened model.
+#[derive(Debug)]
+pub struct Loaded {
+    /// File or example name.
+    pub name: String,
+    /// The file it came from (canonical), if any.
+    pub path: Option<PathBuf>,
+    /// The model as read.
+    pub model: Model,
+    /// Its triangle mesh when it has triangles.
+    pub mesh: Option<TriMesh>,
+}
+
+impl Loaded {
+    fn mesh(&self) -> Result<&TriMesh> {
+        self.mesh.as_ref().ok_or_else(|| {
+            StudioError::NotReady(format!(
+                "{} is a point cloud ({} points): this needs a triangle mesh",
+                self.name,
+                self.model.vertices.len()
+            ))
+        })
+    }
+}
+
+struct DeformState {
+    session: DeformSession,
+    maps: Option<SymmetryMaps>,
+    handles: usize,
+    solved: bool,
+    last_solve_ms: f64,
+}
+
+struct RetargetState {
+    session: RetargetSession,
+    principal: Vec<Point3>,
+    last: Option<TriMesh>,
+}
+
+/// Counts live sessions; a session decrements it when it is dropped.
+#[derive(Debug, Clone, Default)]
+pub struct SessionCounter(Arc<AtomicUsize>);
+
+impl SessionCounter {
+    /// Live sessions.
+    pub fn get(&self) -> usize {
+        self.0.load(Ordering::SeqCst)
+    }
+}
+
+struct CountGuard(SessionCounter);
+
+impl Drop for CountGuard {
+    fn drop(&mut self) {
+        self.0.0.fetch_sub(1, Ordering::SeqCst);
+    }
+}
+
+/// One client's state.
+pub struct Session {
+    sandbox: Arc<Sandbox>,
+    seed: u64,
+    inputs: Vec<PathBuf>,
+    loaded: Option<Arc<Loaded>>,
+    annotation: Option<SymmetryAnnotation>,
+    deform: Option<DeformState>,
+    retarget: Option<RetargetState>,
+    _count: CountGuard,
+}
+
+/// A session behind a mutex, shared by the connection's tasks; locked only on blocking threads.
+pub type Shared = Arc<Mutex<Session>>;
+
+/// Locks a session; a poisoned lock (a bug in an earlier operation) is recovered, the state is
+/// plain data.
+pub fn lock(s: &Shared) -> MutexGuard<'_, Session> {
+    s.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+fn ms_since(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+impl Session {
+    /// A new, empty session (counted in `counter` until dropped).
+    pub fn new(sandbox: Arc<Sandbox>, seed: u64, counter: &SessionCounter) -> Session {
+        counter.0.fetch_add(1, Ordering::SeqCst);
+        Session {
+            sandbox,
+            seed,
+            inputs: Vec::new(),
+            loaded: None,
+            annotation: None,
+            deform: None,
+            retarget: None,
+            _count: CountGuard(counter.clone()),
+        }
+    }
+
+    fn loaded(&self) -> Result<Arc<Loaded>> {
+        self.loaded.clone().ok_or_else(|| StudioError::NotReady("open a model first".to_string()))
+    }
+}
+
+fn model_messages(l: &Loaded, annotation: Option<&SymmetryAnnotation>) -> Vec<Out> {
+    let v = &l.model.vertices;
+    let bb = v.aabb();
+    let bbox = bb.map(|b| [b.min, b.max]).unwrap_or([[0.0; 3]; 2]);
+    vec![
+        Out::Text(ServerMessage::Model {
+            name: l.name.clone(),
+            vertices: v.len(),
+            triangles: l.model.triangles.len(),
+            bbox,
+            diagonal: v.diagonal(),
+            annotation: annotation.cloned(),
+            warnings: l.model.warnings.clone(),
+        }),
+        Out::Binary(encode_binary(BinaryKind::Model, 0, &v.positions, &l.model.triangles, 0.0)),
+    ]
+}
+
+fn install(
+    shared: &Shared,
+    p: &JobProgress,
+    loaded: Loaded,
+    annotation: Option<SymmetryAnnotation>,
+    input: Vec<PathBuf>,
+) -> Vec<Out> {
+    p.check();
+    let mut s = lock(shared);
+    let out = model_messages(&loaded, annotation.as_ref());
+    s.inputs.extend(input);
+    s.loaded = Some(Arc::new(loaded));
+    s.annotation = annotation;
+    s.deform = None;
+    s.retarget = None;
+    out
+}
+
+fn loaded_from(name: String, path: Option<PathBuf>, model: Model) -> Loaded {
+    let mesh = model.is_mesh().then(|| model.mesh());
+    Loaded { name, path, model, mesh }
+}
+
+/// Opens a model file under the root; `STEM.sym.json` beside it is loaded as its annotation.
+pub fn open(shared: &Shared, path: &str, p: &JobProgress) -> Result<Vec<Out>> {
+    let sandbox = lock(shared).sandbox.clone();
+    let file = sandbox.resolve_read(path)?;
+    p.stage("reading");
+    let model = motif_core::io::read(&file)?;
+    let mut inputs = vec![file.clone()];
+    let sidecar = file.with_extension("sym.json");
+    let annotation = if sidecar.is_file() && model.is_mesh() {
+        let sidecar = sandbox.resolve_read(&sidecar.display().to_string())?;
+        inputs.push(sidecar.clone());
+        Some(motif_deform::read_annotation(&sidecar)?)
+    } else {
+        None
+    };
+    let loaded = loaded_from(sandbox.display(&file), Some(file), model);
+    Ok(install(shared, p, loaded, annotation, inputs))
+}
+
+/// Opens a generated example with its known symmetry annotation.
+pub fn example(shared: &Shared, name: &str, p: &JobProgress) -> Result<Vec<Out>> {
+    let seed = lock(shared).seed;
+    p.stage("generating");
+    let ex = motif_core::procedural::generate(name, seed)?;
+    let annotation = (!ex.structure.symmetry.symmetries.is_empty()).then(|| ex.structure.symmetry.clone());
+    let loaded = loaded_from(ex.name.clone(), None, Model::from_mesh(&ex.mesh));
+    Ok(install(shared, p, loaded, annotation, Vec::new()))
+}
+
+/// Opens an uploaded file (format from the name's extension; nothing is written to disk).
+pub fn upload(shared: &Shared, name: &str, bytes: &[u8], p: &JobProgress) -> Result<Vec<Out>> {
+    let file_name =
+        std::path::Path::new(name).file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default();
+    let format = Format::from_path(std::path::Path::new(&file_name))?;
+    if matches!(format, Format::Gltf) {
+        return Err(StudioError::BadMessage(
+            "a .gltf upload cannot bring its external buffers: upload a .glb instead".to_string(),
+        ));
+    }
+    p.stage("reading");
+    let model = motif_core::io::read_from_bytes(bytes, format, std::path::Path::new(&file_name))?;
+    let loaded = loaded_from(file_name, None, model);
+    Ok(install(shared, p, loaded, None, Vec::new()))
+}
+
+fn annotation_message(
+    mesh: &TriMesh,
+    annotation: &SymmetryAnnotation,
+    groups: Vec<GroupSummary>,
+    t: Instant,
+) -> Result<ServerMessage> {
+    let report = check_annotation(mesh, annotation)?;
+    let max_residual = report.symmetries.iter().map(|s| s.max_residual).fold(0.0, f64::max);
+    Ok(ServerMessage::Annotation {
+        annotation: annotation.clone(),
+        groups,
+        max_residual,
+        ok: report.ok,
+        ms: ms_since(t),
+    })
+}
+
+fn set_annotation(shared: &Shared, p: &JobProgress, annotation: SymmetryAnnotation, input: Option<PathBuf>) {
+    p.check();
+    let mut s = lock(shared);
+    s.annotation = Some(annotation);
+    s.inputs.extend(input);
+    s.deform = None;
+}
+
+/// Detects global and partial symmetries of the current mesh.
+pub fn detect_symmetry(shared: &Shared, p: &JobProgress) -> Result<Vec<Out>> {
+    let (loaded, seed) = {
+        let s = lock(shared);
+        (s.loaded()?, s.seed)
+    };
+    let mesh = loaded.mesh()?;
+    let t = Instant::now();
+    let options = SymmetryDetectOptions { seed, ..Default::default() };
+    let det = detect_symmetries_with_progress(mesh, &options, p)?;
+    let groups = det
+        .report
+        .groups
+        .iter()
+        .map(|g| GroupSummary {
+            name: g.name.clone(),
+            schoenflies: g.structure.schoenflies.clone(),
+            order: g.structure.order,
+            max_residual: g.max_residual,
+        })
+        .collect();
+    let msg = annotation_message(mesh, &det.annotation, groups, t)?;
+    set_annotation(shared, p, det.annotation, None);
+    Ok(vec![Out::Text(msg)])
+}
+
+/// Loads a `motif_symmetry_v1` annotation and checks it against the mesh.
+pub fn load_annotation(shared: &Shared, path: &str, p: &JobProgress) -> Result<Vec<Out>> {
+    let (loaded, sandbox) = {
+        let s = lock(shared);
+        (s.loaded()?, s.sandbox.clone())
+    };
+    let mesh = loaded.mesh()?;
+    let file = sandbox.resolve_read(path)?;
+    let t = Instant::now();
+    let annotation = motif_deform::read_annotation(&file)?;
+    let msg = annotation_message(mesh, &annotation, Vec::new(), t)?;
+    set_annotation(shared, p, annotation, Some(file));
+    Ok(vec![Out::Text(msg)])
+}
+
+fn write_json_atomic(path: &std::path::Path, value: &impl serde::Serialize) -> Result<()> {
+    let text = serde_json::to_string_pretty(value)
+        .map_err(|e| StudioError::Internal(format!("serialising {}: {e}", path.display())))?;
+    motif_core::io::write_atomic(path, |w| w.write_all(text.as_bytes()))?;
+    Ok(())
+}
+
+fn check_fresh(path: &std::path::Path, given: &str, overwrite: bool) -> Result<()> {
+    if !overwrite && path.exists() {
+        return Err(StudioError::BadPath {
+            path: shorten(given),
+            problem: "already exists (choose another name, or allow overwriting)".to_string(),
+        });
+    }
+    Ok(())
+}
+
+/// Saves the current annotation.
+pub fn save_annotation(shared: &Shared, path: &str, overwrite: bool) -> Result<Vec<Out>> {
+    let s = lock(shared);
+    let annotation = s
+        .annotation
+        .as_ref()
+        .ok_or_else(|| StudioError::NotReady("no annotation yet: detect or load one".to_string()))?;
+    let file = s.sandbox.resolve_write(path, &s.inputs)?;
+    check_fresh(&file, path, overwrite)?;
+    write_json_atomic(&file, annotation)?;
+    Ok(vec![Out::Text(ServerMessage::Saved { paths: vec![s.sandbox.display(&file)] })])
+}
+
+fn handle_regions(handles: &[HandleSpec]) -> Result<Vec<Handle>> {
+    if handles.len() > MAX_HANDLES {
+        return Err(StudioError::BadMessage(format!("{} handles: at most {MAX_HANDLES}", handles.len())));
+    }
+    handles
+        .iter()
+        .enumerate()
+        .map(|(i, h)| {
+            if h.balls.is_empty() || h.balls.len() > MAX_BALLS {
+                return Err(StudioError::BadMessage(format!(
+                    "handle {i}: needs 1 to {MAX_BALLS} balls, has {}",
+                    h.balls.len()
+                )));
+            }
+            if h.balls
+                .iter()
+                .any(|b| !(b.radius > 0.0 && b.radius.is_finite()) || b.center.iter().any(|c| !c.is_finite()))
+            {
+                return Err(StudioError::BadMessage(format!(
+                    "handle {i}: centres must be finite, radii positive"
+                )));
+            }
+            let mut regions: Vec<Region> =
+                h.balls.iter().map(|b| Region::Sphere { center: b.center, radius: b.radius }).collect();
+            let region = if regions.len() == 1 { regions.remove(0) } else { Region::Union(regions) };
+            Ok(Handle::fixed(region))
+        })
+        .collect()
+}
+
+/// Chooses the handle set: builds the deformation session on first use (sampling, basis, lift),
+/// then factorises for these handles. An empty set returns to the rest shape.
+pub fn set_handles(shared: &Shared, handles: &[HandleSpec]) -> Result<Vec<Out>> {
+    let regions = handle_regions(handles)?;
+    let mut s = lock(shared);
+    if regions.is_empty() {
+        if let Some(d) = s.deform.as_mut() {
+            d.solved = false;
+            d.handles = 0;
+        }
+        return Ok(Vec::new());
+    }
+    let loaded = s.loaded()?;
+    let mesh = loaded.mesh()?;
+    let t = Instant::now();
+    let mut session_ms = 0.0;
+    if s.deform.is_none() {
+        let annotation = s.annotation.clone().unwrap_or_default();
+        let mut options = DeformOptions::default();
+        options.sampling.seed = s.seed;
+        let session = DeformSession::new(mesh, &annotation, &options)?;
+        session_ms = ms_since(t);
+        s.deform = Some(DeformState { session, maps: None, handles: 0, solved: false, last_solve_ms: 0.0 });
+    }
+    let Some(d) = s.deform.as_mut() else { return Err(StudioError::Internal("set_handles".to_string())) };
+    d.solved = false;
+    d.handles = 0;
+    d.session.set_handles(&regions)?;
+    d.handles = regions.len();
+    let st = d.session.stats();
+    let samples = d.session.handle_samples().iter().map(Vec::len).collect();
+    Ok(vec![Out::Text(ServerMessage::Handles {
+        handles: regions.len(),
+        samples,
+        total_samples: st.samples,
+        dof: st.dof,
+        prefactor_ms: st.timings.prefactor_ms,
+        session_ms,
+    })])
+}
+
+/// Solves one drag frame and encodes the deformed positions.
+pub fn drag(shared: &Shared, seq: u32, transforms: &[Mat4]) -> Result<Vec<Out>> {
+    let mut s = lock(shared);
+    let d = s
+        .deform
+        .as_mut()
+        .filter(|d| d.handles > 0)
+        .ok_or_else(|| StudioError::NotReady("pick handles before dragging".to_string()))?;
+    let t = Instant::now();
+    let positions = d.session.solve(transforms)?;
+    let solve_ms = ms_since(t);
+    let frame = encode_binary(BinaryKind::DeformFrame, seq, positions, &[], solve_ms as f32);
+    d.solved = true;
+    d.last_solve_ms = solve_ms;
+    Ok(vec![Out::Binary(frame)])
+}
+
+/// Measures the current deformation: symmetry residual (eq. 3.2) and handle fit.
+pub fn release(shared: &Shared) -> Result<Vec<Out>> {
+    let mut s = lock(shared);
+    let loaded = s.loaded()?;
+    let annotation = s.annotation.clone();
+    let Some(d) = s.deform.as_mut() else { return Ok(Vec::new()) };
+    let mesh = loaded.mesh()?;
+    if d.maps.is_none() {
+        if let Some(a) = annotation.as_ref().filter(|a| !a.symmetries.is_empty()) {
+            d.maps = Some(SymmetryMaps::new(mesh, a)?);
+        }
+    }
+    let positions = if d.solved { d.session.positions() } else { d.session.rest_positions() };
+    let (residual, rest_residual) = match &d.maps {
+        Some(m) => {
+            let r = m.residual(positions)?;
+            (Some(r.max), Some(r.rest_max))
+        }
+        None => (None, None),
+    };
+    let handle_error =
+        if d.solved { d.session.handle_fit().iter().map(|f| f.max_error).fold(0.0, f64::max) } else { 0.0 };
+    Ok(vec![Out::Text(ServerMessage::Deformed {
+        residual,
+        rest_residual,
+        handle_error,
+        solve_ms: d.last_solve_ms,
+    })])
+}
+
+/// Writes the deformed (or retargeted) model and, for the deformed one, its annotation as
+/// `STEM.sym.json`.
+pub fn export(shared: &Shared, path: &str, source: ExportSource, overwrite: bool) -> Result<Vec<Out>> {
+    let s = lock(shared);
+    let loaded = s.loaded()?;
+    let file = s.sandbox.resolve_write(path, &s.inputs)?;
+    check_fresh(&file, path, overwrite)?;
+    Format::from_path(&file)?;
+    let mut written = Vec::new();
+    match source {
+        ExportSource::Deformed => {
+            let model = match (&s.deform, &loaded.mesh) {
+                (Some(d), Some(mesh)) if d.solved => Model::from_mesh(&TriMesh {
+                    positions: d.session.positions().to_vec(),
+                    triangles: mesh.triangles.clone(),
+                }),
+                _ => loaded.model.clone(),
+            };
+            motif_core::io::write(&file, &model, &WriteOptions::default())?;
+            written.push(s.sandbox.display(&file));
+            if let Some(a) = s.annotation.as_ref().filter(|_| model.is_mesh()) {
+                let side = file.with_extension("sym.json");
+                let side_text = side.display().to_string();
+                let side = s.sandbox.resolve_write(&side_text, &s.inputs)?;
+                check_fresh(&side, &side_text, overwrite)?;
+                write_json_atomic(&side, a)?;
+                written.push(s.sandbox.display(&side));
+            }
+        }
+        ExportSource::Retargeted => {
+            let mesh = s
+                .retarget
+                .as_ref()
+                .and_then(|r| r.last.as_ref())
+                .ok_or_else(|| StudioError::NotReady("nothing retargeted yet".to_string()))?;
+            motif_core::io::write(&file, &Model::from_mesh(mesh), &WriteOptions::default())?;
+            written.push(s.sandbox.display(&file));
+        }
+    }
+    Ok(vec![Out::Text(ServerMessage::Saved { paths: written })])
+}
+
+/// Whole cells of `mesh` along each offset: the extent along the offset's direction divided by
+/// its length, rounded down (a readout for the page; 1e-6 absorbs rounding).
+pub fn cells_along(mesh: &TriMesh, offsets: &[Point3]) -> Vec<usize> {
+    offsets
+        .iter()
+        .map(|o| {
+            let len = norm(*o);
+            if len.is_nan() || len <= 0.0 {
+                return 0;
+            }
+            let d = scale(*o, 1.0 / len);
+            let (lo, hi) = mesh
+                .positions
+                .iter()
+                .map(|p| dot(*p, d))
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), t| (lo.min(t), hi.max(t)));
+            ((hi - lo) / len + 1e-6).floor().max(0.0) as usize
+        })
+        .collect()
+}
+
+/// Principal offsets of the current mesh, then the retargeting precomputation for them.
+pub fn offsets(shared: &Shared, p: &JobProgress) -> Result<Vec<Out>> {
+    let (loaded, seed) = {
+        let s = lock(shared);
+        (s.loaded()?, s.seed)
+    };
+    let mesh = loaded.mesh()?;
+    let t = Instant::now();
+    let offset_options = OffsetOptions { seed, ..Default::default() };
+    let features = prepare_features(mesh, &offset_options, p)?;
+    let analysis = analyze_features(&features, &offset_options, p)?;
+    let principal = orient_offsets(&analysis.principal.iter().map(|o| o.offset_model).collect::<Vec<_>>());
+    let summary = analysis.repetition.summary.clone();
+    if analysis.repetition.kind == Repetition::NoRepetition || principal.is_empty() {
+        p.check();
+        lock(shared).retarget = None;
+        return Ok(vec![Out::Text(ServerMessage::Offsets {
+            principal: Vec::new(),
+            cells: Vec::new(),
+            summary,
+            ms: ms_since(t),
+        })]);
+    }
+    let options = RetargetOptions { seed, ..Default::default() };
+    let session = RetargetSession::with_features(mesh, &features, &principal, &options, p)?;
+    let cells = cells_along(mesh, &principal);
+    p.check();
+    lock(shared).retarget = Some(RetargetState { session, principal: principal.clone(), last: None });
+    Ok(vec![Out::Text(ServerMessage::Offsets { principal, cells, summary, ms: ms_since(t) })])
+}
+
+/// Resizes by `steps` principal offsets.
+pub fn retarget(shared: &Shared, seq: u32, steps: [i32; 3]) -> Result<Vec<Out>> {
+    let mut s = lock(shared);
+    let r = s
+        .retarget
+        .as_mut()
+        .ok_or_else(|| StudioError::NotReady("find the principal offsets first".to_string()))?;
+    if steps.iter().any(|k| k.abs() > 64) {
+        return Err(StudioError::BadMessage("steps: at most 64 cells either way".to_string()));
+    }
+    let t = Instant::now();
+    let res = r.session.retarget(steps, &NoProgress)?;
+    let ms = ms_since(t);
+    let cells = cells_along(&res.mesh, &r.principal);
+    let total_cells = cells.iter().product();
+    let out = vec![
+        Out::Text(ServerMessage::Retargeted {
+            seq,
+            steps,
+            cells,
+            total_cells,
+            vertices: res.mesh.num_vertices(),
+            triangles: res.mesh.num_triangles(),
+            ms,
+        }),
+        Out::Binary(encode_binary(
+            BinaryKind::Retargeted,
+            seq,
+            &res.mesh.positions,
+            &res.mesh.triangles,
+            ms as f32,
+        )),
+    ];
+    r.last = Some(res.mesh);
+    Ok(out)
+}
+
+/// The detections message for a result on the current model: boxes per class and, per vertex,
+/// the class whose instance lists it (`points`) or whose box holds it; first class wins.
+fn detections_message(loaded: &Loaded, result: &DetectionResult) -> ServerMessage {
+    let positions = &loaded.model.vertices.positions;
+    let mut point_class = vec![-1i32; positions.len()];
+    let mut classes = Vec::new();
+    for (j, c) in result.classes.iter().enumerate() {
+        let mut count = 0;
+        for inst in &c.instances {
+            let mut mark = |i: usize, count: &mut usize| {
+                if point_class[i] < 0 {
+                    point_class[i] = j as i32;
+                    *count += 1;
+                }
+            };
+            match &inst.points {
+                Some(pts) => pts
+                    .iter()
+                    .filter(|&&i| (i as usize) < positions.len())
+                    .for_each(|&i| mark(i as usize, &mut count)),
+                None => {
+                    for (i, p) in positions.iter().enumerate() {
+                        if (0..3).all(|k| p[k] >= inst.bbox_min[k] && p[k] <= inst.bbox_max[k]) {
+                            mark(i, &mut count);
+                        }
+                    }
+                }
+            }
+        }
+        classes.push(ClassSummary {
+            name: c.name.clone().unwrap_or_else(|| format!("class_{j}")),
+            boxes: c.instances.iter().map(|i| [i.bbox_min, i.bbox_max]).collect(),
+            points: count,
+        });
+    }
+    ServerMessage::Detections { scene: result.scene.clone(), classes, point_class }
+}
+
+/// Loads a detection result (`../shared/formats/detection.md`) to show on the current model.
+pub fn load_detections(shared: &Shared, path: &str) -> Result<Vec<Out>> {
+    let (loaded, sandbox) = {
+        let s = lock(shared);
+        (s.loaded()?, s.sandbox.clone())
+    };
+    let file = sandbox.resolve_read(path)?;
+    let result = DetectionResult::read(&file)?;
+    result.validate(&file.display().to_string())?;
+    Ok(vec![Out::Text(detections_message(&loaded, &result))])
+}
+
+/// Building-block detection of a model (`motif_detect`, thesis chapter 5): the one place the
+/// detection pipeline is called from. Meshes are sampled on their surface by
+/// [`motif_detect::detect_mesh`]; the instance point lists then index those samples, not the
+/// mesh's vertices, so they are dropped and the vertices are coloured by the instance boxes.
+pub fn detect_building_blocks(
+    model: &Model,
+    name: &str,
+    seed: u64,
+    progress: &dyn Progress,
+) -> Result<DetectionResult> {
+    let options = motif_detect::DetectOptions { seed, ..Default::default() };
+    if model.is_mesh() {
+        let mut d = motif_detect::detect_mesh(&model.mesh(), name, &options, progress)?;
+        for c in &mut d.result.classes {
+            for i in &mut c.instances {
+                i.points = None;
+            }
+        }
+        Ok(d.result)
+    } else {
+        Ok(motif_detect::detect(&model.vertices, name, &options, progress, false)?.result)
+    }
+}
+
+/// Runs building-block detection on the current model and shows the result.
+pub fn detect(shared: &Shared, p: &JobProgress) -> Result<Vec<Out>> {
+    let (loaded, seed) = {
+        let s = lock(shared);
+        (s.loaded()?, s.seed)
+    };
+    let result = detect_building_blocks(&loaded.model, &loaded.name, seed, p)?;
+    p.check();
+    Ok(vec![Out::Text(detections_message(&loaded, &result))])
+}

@@ -1,0 +1,467 @@
+//! The studio server through a real WebSocket client: hostile and oversized messages, path
+//! escapes, cancellation and cleanup, detections, resizing, and 20 concurrent clients each
+//! solving a real deformation.
+
+use std::path::Path;
+use std::time::Duration;
+
+use futures_util::{SinkExt, StreamExt};
+use motif_studio::protocol::{FRAME_HEADER_BYTES, Limits};
+use motif_studio::{ServerMessage, SessionCounter, Studio, StudioOptions};
+use serde_json::json;
+use tokio::net::TcpStream;
+use tokio_tungstenite::tungstenite::Message;
+use tokio_tungstenite::tungstenite::client::IntoClientRequest;
+use tokio_tungstenite::{MaybeTlsStream, WebSocketStream};
+
+type Ws = WebSocketStream<MaybeTlsStream<TcpStream>>;
+
+/// Limits small enough to test: 4 KiB text, 256 KiB uploads.
+const TEST_LIMITS: Limits = Limits { max_text_bytes: 4096, max_upload_bytes: 256 * 1024, max_sessions: 64 };
+
+struct Server {
+    url: String,
+    sessions: SessionCounter,
+    _dir: tempfile::TempDir,
+    root: std::path::PathBuf,
+}
+
+async fn start() -> Server {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path().join("root");
+    std::fs::create_dir(&root).unwrap();
+    let ex = motif_core::procedural::generate("fan", 1).unwrap();
+    motif_core::io::write_mesh(&root.join("fan.obj"), &ex.mesh).unwrap();
+    motif_core::io::write_mesh(&dir.path().join("outside.obj"), &ex.mesh).unwrap();
+    let options = StudioOptions { root: root.clone(), limits: TEST_LIMITS, ..Default::default() };
+    let studio = Studio::bind(options).await.unwrap();
+    let url = format!("ws://{}/ws", studio.local_addr().unwrap());
+    let sessions = studio.sessions();
+    tokio::spawn(studio.serve());
+    Server { url, sessions, _dir: dir, root }
+}
+
+async fn connect(url: &str) -> Ws {
+    let (mut ws, _) = tokio_tungstenite::connect_async(url).await.unwrap();
+    match next_text(&mut ws).await {
+        ServerMessage::Hello { .. } => {}
+        other => panic!("expected hello, got {other:?}"),
+    }
+    ws
+}
+
+enum Reply {
+    Text(ServerMessage),
+    Binary(Vec<u8>),
+    Closed(Option<u16>),
+}
+
+async fn next(ws: &mut Ws) -> Reply {
+    loop {
+        match ws.next().await {
+            Some(Ok(Message::Text(t))) => return Reply::Text(serde_json::from_str(t.as_str()).unwrap()),
+            Some(Ok(Message::Binary(b))) => return Reply::Binary(b.to_vec()),
+            Some(Ok(Message::Close(f))) => return Reply::Closed(f.map(|f| u16::from(f.code))),
+            Some(Ok(_)) => continue,
+            Some(Err(_)) | None => return Reply::Closed(None),
+        }
+    }
+}
+
+/// The next text message that is not a progress report.
+async fn next_text(ws: &mut Ws) -> ServerMessage {
+    loop {
+        match next(ws).await {
+            Reply::Text(ServerMessage::Progress { .. }) => continue,
+            Reply::Text(m) => return m,
+            Reply::Binary(_) => continue,
+            Reply::Closed(c) => panic!("connection closed ({c:?})"),
+        }
+    }
+}
+
+async fn send(ws: &mut Ws, v: serde_json::Value) {
+    ws.send(Message::Text(v.to_string().into())).await.unwrap();
+}
+
+/// Opens a generated example; returns its vertex count (the model's binary frame is consumed).
+async fn open_example(ws: &mut Ws, name: &str) -> usize {
+    send(ws, json!({"type": "example", "name": name})).await;
+    let n = match next_text(ws).await {
+        ServerMessage::Model { vertices, .. } => vertices,
+        other => panic!("expected model, got {other:?}"),
+    };
+    match next(ws).await {
+        Reply::Binary(b) => assert_eq!(u32::from_le_bytes(b[8..12].try_into().unwrap()) as usize, n),
+        _ => panic!("expected the model's geometry"),
+    }
+    n
+}
+
+fn expect_error(m: ServerMessage, needle: &str) {
+    match m {
+        ServerMessage::Error { message, .. } => {
+            assert!(message.contains(needle), "error {message:?} should mention {needle:?}")
+        }
+        other => panic!("expected an error mentioning {needle:?}, got {other:?}"),
+    }
+}
+
+fn positions(frame: &[u8]) -> Vec<f32> {
+    frame[FRAME_HEADER_BYTES..].chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect()
+}
+
+fn translation(t: [f64; 3]) -> [[f64; 4]; 4] {
+    [[1.0, 0.0, 0.0, t[0]], [0.0, 1.0, 0.0, t[1]], [0.0, 0.0, 1.0, t[2]], [0.0, 0.0, 0.0, 1.0]]
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn hostile_messages_are_answered_and_the_server_keeps_serving() {
+    let s = start().await;
+    let mut ws = connect(&s.url).await;
+    let hostile = [
+        ("not json", "bad message"),
+        ("{\"type\":\"launch_missiles\"}", "bad message"),
+        ("{\"type\":\"open\"}", "bad message"),
+        ("{\"type\":\"open\",\"path\":17}", "bad message"),
+        ("{\"type\":\"retarget\",\"seq\":-1,\"steps\":[1]}", "bad message"),
+        ("[]", "bad message"),
+        ("{\"type\":\"drag\",\"seq\":1,\"transforms\":[[[1e999]]]}", "bad message"),
+    ];
+    for (text, needle) in hostile {
+        ws.send(Message::Text(text.into())).await.unwrap();
+        expect_error(next_text(&mut ws).await, needle);
+    }
+    // Requests in the wrong order get explanations.
+    send(&mut ws, json!({"type": "detect_symmetry"})).await;
+    expect_error(next_text(&mut ws).await, "open a model first");
+    send(&mut ws, json!({"type": "drag", "seq": 1, "transforms": []})).await;
+    expect_error(next_text(&mut ws).await, "pick handles");
+    send(&mut ws, json!({"type": "retarget", "seq": 1, "steps": [1, 0, 0]})).await;
+    expect_error(next_text(&mut ws).await, "principal offsets first");
+    send(&mut ws, json!({"type": "example", "name": "no-such-shape"})).await;
+    expect_error(next_text(&mut ws).await, "unknown example");
+    // Bad handles: a negative radius, too many handles, a handle that selects nothing.
+    let n = open_example(&mut ws, "fan").await;
+    assert!(n > 0);
+    send(
+        &mut ws,
+        json!({"type": "set_handles", "handles": [{"balls": [{"center": [0, 0, 0], "radius": -1.0}]}]}),
+    )
+    .await;
+    expect_error(next_text(&mut ws).await, "radii positive");
+    send(
+        &mut ws,
+        json!({"type": "set_handles", "handles": [{"balls": [{"center": [90, 90, 90], "radius": 0.01}]}]}),
+    )
+    .await;
+    assert!(matches!(next_text(&mut ws).await, ServerMessage::Error { .. }));
+    let many: Vec<_> = (0..65).map(|_| json!({"balls": [{"center": [0, 0, 0], "radius": 0.1}]})).collect();
+    let text = json!({"type": "set_handles", "handles": many}).to_string();
+    assert!(text.len() < TEST_LIMITS.max_text_bytes);
+    ws.send(Message::Text(text.into())).await.unwrap();
+    expect_error(next_text(&mut ws).await, "at most 64");
+    // Malformed uploads: a truncated header, a name longer than the message, an unknown format,
+    // a file that does not parse.
+    for bytes in [
+        vec![1u8, 0],
+        vec![200, 0, 0, 0, b'a'],
+        upload("x.xyz", b"1 2 3"),
+        upload("x.obj", b"v 1 2\nf 1 2 3\n"),
+    ] {
+        ws.send(Message::Binary(bytes.into())).await.unwrap();
+        assert!(matches!(next_text(&mut ws).await, ServerMessage::Error { .. }));
+    }
+    // Oversized text: an error reply, and the same connection keeps working.
+    let big = format!("{{\"type\":\"open\",\"path\":\"{}\"}}", "a".repeat(TEST_LIMITS.max_text_bytes));
+    ws.send(Message::Text(big.into())).await.unwrap();
+    expect_error(next_text(&mut ws).await, "text messages are limited");
+    assert_eq!(open_example(&mut ws, "fan").await, n);
+    // A valid upload works.
+    let ex = motif_core::procedural::generate("chair", 1).unwrap();
+    let obj = s.root.join("chair.obj");
+    motif_core::io::write_mesh(&obj, &ex.mesh).unwrap();
+    ws.send(Message::Binary(upload("chair.obj", &std::fs::read(&obj).unwrap()).into())).await.unwrap();
+    match next_text(&mut ws).await {
+        ServerMessage::Model { vertices, name, .. } => {
+            assert_eq!(vertices, ex.mesh.num_vertices());
+            assert_eq!(name, "chair.obj");
+        }
+        other => panic!("expected the uploaded model, got {other:?}"),
+    }
+    // Over the protocol limit: that connection is closed with 1009, the server keeps serving.
+    let huge = vec![0u8; TEST_LIMITS.max_upload_bytes + 64 * 1024];
+    let _ = ws.send(Message::Binary(huge.into())).await;
+    loop {
+        match next(&mut ws).await {
+            Reply::Closed(code) => {
+                assert!(code.is_none() || code == Some(1009), "close code {code:?}");
+                break;
+            }
+            _ => continue,
+        }
+    }
+    let mut again = connect(&s.url).await;
+    assert_eq!(open_example(&mut again, "fan").await, n);
+}
+
+fn upload(name: &str, bytes: &[u8]) -> Vec<u8> {
+    let mut v = (name.len() as u32).to_le_bytes().to_vec();
+    v.extend_from_slice(name.as_bytes());
+    v.extend_from_slice(bytes);
+    v
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn files_outside_the_root_cannot_be_read_or_written() {
+    let s = start().await;
+    let mut ws = connect(&s.url).await;
+    let outside = s.root.parent().unwrap().join("outside.obj");
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::symlink(&outside, s.root.join("link.obj")).unwrap();
+        std::os::unix::fs::symlink(s.root.parent().unwrap(), s.root.join("up")).unwrap();
+    }
+    let mut escapes = vec![
+        "../outside.obj".to_string(),
+        outside.display().to_string(),
+        "./../root/../outside.obj".to_string(),
+    ];
+    if cfg!(unix) {
+        escapes.push("link.obj".to_string());
+        escapes.push("up/outside.obj".to_string());
+    }
+    for p in &escapes {
+        send(&mut ws, json!({"type": "open", "path": p})).await;
+        expect_error(next_text(&mut ws).await, "outside the studio's root");
+        send(&mut ws, json!({"type": "load_detections", "path": p})).await;
+        assert!(matches!(next_text(&mut ws).await, ServerMessage::Error { .. }));
+    }
+    send(&mut ws, json!({"type": "open", "path": "nope.obj"})).await;
+    expect_error(next_text(&mut ws).await, "cannot open");
+    // Inside the root: open, then every write that leaves it is refused.
+    send(&mut ws, json!({"type": "open", "path": "fan.obj"})).await;
+    assert!(matches!(next_text(&mut ws).await, ServerMessage::Model { .. }));
+    let mut writes = vec![
+        "../written.obj".to_string(),
+        s.root.parent().unwrap().join("written.obj").display().to_string(),
+    ];
+    if cfg!(unix) {
+        writes.push("up/written.obj".to_string());
+        writes.push("link.obj".to_string());
+    }
+    for p in &writes {
+        send(&mut ws, json!({"type": "export", "path": p, "overwrite": true})).await;
+        assert!(matches!(next_text(&mut ws).await, ServerMessage::Error { .. }), "{p}");
+    }
+    assert!(!s.root.parent().unwrap().join("written.obj").exists());
+    // The input is never overwritten, even when asked to.
+    let before = std::fs::read(s.root.join("fan.obj")).unwrap();
+    send(&mut ws, json!({"type": "export", "path": "fan.obj", "overwrite": true})).await;
+    expect_error(next_text(&mut ws).await, "refusing to overwrite");
+    assert_eq!(std::fs::read(s.root.join("fan.obj")).unwrap(), before);
+    // A write inside the root works and is read back.
+    send(&mut ws, json!({"type": "export", "path": "copy.ply"})).await;
+    match next_text(&mut ws).await {
+        ServerMessage::Saved { paths } => assert_eq!(paths, vec!["copy.ply".to_string()]),
+        other => panic!("expected saved, got {other:?}"),
+    }
+    send(&mut ws, json!({"type": "export", "path": "copy.ply"})).await;
+    expect_error(next_text(&mut ws).await, "already exists");
+    send(&mut ws, json!({"type": "open", "path": "copy.ply"})).await;
+    assert!(matches!(next_text(&mut ws).await, ServerMessage::Model { .. }));
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn pages_from_other_origins_are_refused() {
+    let s = start().await;
+    let mut req = s.url.as_str().into_client_request().unwrap();
+    req.headers_mut().insert("Origin", "http://evil.example".parse().unwrap());
+    assert!(tokio_tungstenite::connect_async(req).await.is_err());
+    let mut req = s.url.as_str().into_client_request().unwrap();
+    let host = req.headers()["Host"].to_str().unwrap().to_string();
+    req.headers_mut().insert("Origin", format!("http://{host}").parse().unwrap());
+    assert!(tokio_tungstenite::connect_async(req).await.is_ok());
+    // DNS rebinding: a foreign host name pointing at this machine.
+    let mut req = s.url.as_str().into_client_request().unwrap();
+    req.headers_mut().insert("Host", "evil.example".parse().unwrap());
+    assert!(tokio_tungstenite::connect_async(req).await.is_err());
+}
+
+/// One client: opens the fan, fixes its hub, lifts a blade tip and checks the frame and the
+/// symmetry residual.
+async fn deform_client(url: String, lift: f64) -> f64 {
+    let mut ws = connect(&url).await;
+    let n = open_example(&mut ws, "fan").await;
+    send(
+        &mut ws,
+        json!({"type": "set_handles", "handles": [
+            {"balls": [{"center": [0.0, 0.0, 0.0], "radius": 0.06}]},
+            {"balls": [{"center": [0.3, 0.0, 0.0], "radius": 0.04}]}]}),
+    )
+    .await;
+    match next_text(&mut ws).await {
+        ServerMessage::Handles { handles, samples, .. } => {
+            assert_eq!(handles, 2);
+            assert!(samples.iter().all(|&k| k > 0));
+        }
+        other => panic!("expected handles, got {other:?}"),
+    }
+    let transforms = [translation([0.0; 3]), translation([0.0, 0.0, lift])];
+    send(&mut ws, json!({"type": "drag", "seq": 7, "transforms": transforms})).await;
+    let frame = match next(&mut ws).await {
+        Reply::Binary(b) => b,
+        Reply::Text(m) => panic!("expected a frame, got {m:?}"),
+        Reply::Closed(_) => panic!("closed"),
+    };
+    assert_eq!(u32::from_le_bytes(frame[0..4].try_into().unwrap()), 2);
+    assert_eq!(u32::from_le_bytes(frame[4..8].try_into().unwrap()), 7);
+    let p = positions(&frame);
+    assert_eq!(p.len(), 3 * n);
+    let ex = motif_core::procedural::generate("fan", 1).unwrap();
+    let moved = ex
+        .mesh
+        .positions
+        .iter()
+        .enumerate()
+        .map(|(i, r)| (0..3).map(|k| (p[3 * i + k] as f64 - r[k]).abs()).fold(0.0, f64::max))
+        .fold(0.0, f64::max);
+    assert!(moved > 0.5 * lift, "the blade should follow the handle: moved {moved}");
+    send(&mut ws, json!({"type": "release"})).await;
+    match next_text(&mut ws).await {
+        ServerMessage::Deformed { residual: Some(r), .. } => r,
+        other => panic!("expected deformed, got {other:?}"),
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn twenty_concurrent_clients_each_deform() {
+    let s = start().await;
+    let tasks: Vec<_> =
+        (0..20).map(|i| tokio::spawn(deform_client(s.url.clone(), 0.02 + 0.002 * i as f64))).collect();
+    for t in tasks {
+        let residual = t.await.unwrap();
+        assert!(residual < 1e-9, "symmetry residual {residual}");
+    }
+    wait_for_sessions(&s.sessions, 0).await;
+}
+
+async fn wait_for_sessions(c: &SessionCounter, n: usize) {
+    // Sessions are freed asynchronously after the socket closes; give it up to a minute.
+    for _ in 0..600 {
+        if c.get() == n {
+            return;
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    assert_eq!(c.get(), n, "sessions still held");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn long_computations_cancel_and_disconnects_free_sessions() {
+    let s = start().await;
+    let mut ws = connect(&s.url).await;
+    open_example(&mut ws, "gear").await;
+    send(&mut ws, json!({"type": "detect_symmetry"})).await;
+    send(&mut ws, json!({"type": "cancel"})).await;
+    // Cancelled, unless detection already finished before the cancel arrived.
+    match next_text(&mut ws).await {
+        ServerMessage::Cancelled { job } => assert_eq!(job, "detect_symmetry"),
+        ServerMessage::Annotation { .. } => {}
+        other => panic!("expected cancelled, got {other:?}"),
+    }
+    // The session still works after a cancel.
+    send(&mut ws, json!({"type": "detect_symmetry"})).await;
+    match next_text(&mut ws).await {
+        ServerMessage::Annotation { groups, ok, .. } => {
+            assert!(ok);
+            assert!(groups.iter().any(|g| g.schoenflies == "D17h"), "{groups:?}");
+        }
+        other => panic!("expected the annotation, got {other:?}"),
+    }
+    assert_eq!(s.sessions.get(), 1);
+    // Leave in the middle of a computation: the session is freed.
+    send(&mut ws, json!({"type": "offsets"})).await;
+    drop(ws);
+    let mut other = connect(&s.url).await;
+    open_example(&mut other, "fan").await;
+    drop(other);
+    wait_for_sessions(&s.sessions, 0).await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn shelf_grows_by_one_cell_and_exports() {
+    let s = start().await;
+    let mut ws = connect(&s.url).await;
+    open_example(&mut ws, "shelf").await;
+    send(&mut ws, json!({"type": "offsets"})).await;
+    match next_text(&mut ws).await {
+        ServerMessage::Offsets { principal, cells, .. } => {
+            assert_eq!(principal.len(), 2);
+            assert_eq!(cells, vec![4, 3]);
+        }
+        other => panic!("expected offsets, got {other:?}"),
+    }
+    send(&mut ws, json!({"type": "retarget", "seq": 1, "steps": [1, 0, 0]})).await;
+    match next_text(&mut ws).await {
+        ServerMessage::Retargeted { cells, total_cells, .. } => {
+            assert_eq!(cells, vec![5, 3]);
+            assert_eq!(total_cells, 15);
+        }
+        other => panic!("expected retargeted, got {other:?}"),
+    }
+    assert!(matches!(next(&mut ws).await, Reply::Binary(_)));
+    send(&mut ws, json!({"type": "export", "path": "shelf5.glb", "source": "retargeted"})).await;
+    assert!(matches!(next_text(&mut ws).await, ServerMessage::Saved { .. }));
+    let back = motif_core::io::read_mesh(&s.root.join("shelf5.glb")).unwrap();
+    assert!(back.num_vertices() > 0);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn detections_load_from_a_result_file() {
+    let s = start().await;
+    let ex = motif_core::procedural::generate("facade", 1).unwrap();
+    motif_core::io::write_mesh(&s.root.join("facade.ply"), &ex.mesh).unwrap();
+    let gt = ex.structure.detection_ground_truth("facade.ply");
+    std::fs::write(s.root.join("RESULT.json"), gt.to_string()).unwrap();
+    std::fs::write(s.root.join("broken.json"), "{\"scene\": 1}").unwrap();
+    let mut ws = connect(&s.url).await;
+    send(&mut ws, json!({"type": "open", "path": "facade.ply"})).await;
+    assert!(matches!(next_text(&mut ws).await, ServerMessage::Model { .. }));
+    send(&mut ws, json!({"type": "load_detections", "path": "RESULT.json"})).await;
+    match next_text(&mut ws).await {
+        ServerMessage::Detections { classes, point_class, .. } => {
+            assert_eq!(classes.len(), ex.structure.instances.len());
+            assert_eq!(point_class.len(), ex.mesh.num_vertices());
+            assert!(classes.iter().all(|c| c.points > 0), "{classes:?}");
+        }
+        other => panic!("expected detections, got {other:?}"),
+    }
+    send(&mut ws, json!({"type": "load_detections", "path": "broken.json"})).await;
+    assert!(matches!(next_text(&mut ws).await, ServerMessage::Error { .. }));
+    // The detector itself, cancelled: a cancel reply (or the result, if it was quicker).
+    send(&mut ws, json!({"type": "detect"})).await;
+    send(&mut ws, json!({"type": "cancel"})).await;
+    match next_text(&mut ws).await {
+        ServerMessage::Cancelled { job } => assert_eq!(job, "detect"),
+        ServerMessage::Detections { point_class, .. } => {
+            assert_eq!(point_class.len(), ex.mesh.num_vertices())
+        }
+        other => panic!("expected cancelled or detections, got {other:?}"),
+    }
+}
+
+#[test]
+fn bind_refuses_a_missing_root_and_a_model_outside_it() {
+    let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let missing = StudioOptions { root: dir.path().join("nope"), ..Default::default() };
+    assert!(rt.block_on(Studio::bind(missing)).is_err());
+    let outside = StudioOptions {
+        root: dir.path().to_path_buf(),
+        model: Some("../x.obj".into()),
+        ..Default::default()
+    };
+    assert!(rt.block_on(Studio::bind(outside)).is_err());
+    let _ = Path::new(".");
+}

@@ -1,0 +1,618 @@
+// Motif studio page: a thin view over the server's WebSocket API (see crates/motif-studio/src/
+// protocol.rs). Geometry comes from the server; the page only draws, picks and sends requests.
+// `window.motif.state` exposes what the browser tests and the benchmark read back.
+import * as THREE from 'three';
+import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+import { TransformControls } from 'three/addons/controls/TransformControls.js';
+
+const $ = (id) => document.getElementById(id);
+
+const state = {
+  connected: false, name: null, vertices: 0, triangles: 0, isMesh: false, bbox: null, diagonal: 0,
+  meshVersion: 0, handles: 0, handleSamples: [], symmetryResidual: null, restResidual: null,
+  maxDisplacement: 0, lastFrameMs: null, medianFrameMs: null, lastSolveMs: null, framesReceived: 0,
+  frameTimes: [], frameLog: [], annotation: null, offsets: null, cells: null, totalCells: null, retargetVersion: 0,
+  retargetVertices: 0, detections: null, busy: null, progress: null, saved: [], errors: [], released: 0,
+  undo: 0, redo: 0,
+};
+window.motif = { state };
+
+// ---------------------------------------------------------------------------------------------
+// Scene
+const viewport = $('viewport');
+const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+renderer.setPixelRatio(1);
+viewport.appendChild(renderer.domElement);
+const scene = new THREE.Scene();
+scene.background = new THREE.Color(0xeef0f4);
+const camera = new THREE.PerspectiveCamera(40, 1, 0.01, 1000);
+scene.add(new THREE.HemisphereLight(0xffffff, 0x8890a0, 1.6));
+const sun = new THREE.DirectionalLight(0xffffff, 1.6);
+camera.add(sun);
+sun.position.set(1, 2, 3);
+scene.add(camera);
+const orbit = new OrbitControls(camera, renderer.domElement);
+const gizmo = new TransformControls(camera, renderer.domElement);
+const gizmoTarget = new THREE.Object3D();
+scene.add(gizmoTarget);
+scene.add(gizmo.getHelper());
+
+const material = new THREE.MeshStandardMaterial({ color: 0xb9c3d6, roughness: 0.7, metalness: 0.05, flatShading: true, side: THREE.DoubleSide });
+const pointMaterial = new THREE.PointsMaterial({ size: 3, sizeAttenuation: false, color: 0x6d7890 });
+let geometry = null, object = null, restPositions = null;
+let retargetObject = null;
+const overlays = { bbox: new THREE.Group(), symmetry: new THREE.Group(), detections: new THREE.Group(), handles: new THREE.Group(), offsets: new THREE.Group() };
+Object.values(overlays).forEach((g) => scene.add(g));
+
+let renderQueued = false;
+function requestRender() {
+  if (renderQueued) return;
+  renderQueued = true;
+  requestAnimationFrame(() => { renderQueued = false; renderer.render(scene, camera); });
+}
+function resize() {
+  const w = viewport.clientWidth, h = viewport.clientHeight;
+  renderer.setSize(w, h);
+  camera.aspect = w / Math.max(h, 1);
+  camera.updateProjectionMatrix();
+  requestRender();
+}
+window.addEventListener('resize', resize);
+orbit.addEventListener('change', requestRender);
+gizmo.addEventListener('change', requestRender);
+gizmo.addEventListener('dragging-changed', (e) => {
+  orbit.enabled = !e.value;
+  if (!e.value) endDrag();
+});
+gizmo.addEventListener('objectChange', onGizmoMove);
+
+// ---------------------------------------------------------------------------------------------
+// Connection
+let ws = null;
+let lastRecv = 0;
+let pendingBinary = [];
+function connect() {
+  ws = new WebSocket(`ws://${location.host}/ws`);
+  ws.binaryType = 'arraybuffer';
+  ws.onopen = () => {
+    state.connected = true;
+    const params = new URLSearchParams(location.search);
+    if (params.get('example')) send({ type: 'example', name: params.get('example') });
+    if (params.get('open')) send({ type: 'open', path: params.get('open') });
+  };
+  ws.onclose = () => { state.connected = false; message('connection closed; reload the page', true); };
+  ws.onmessage = (ev) => { lastRecv = performance.now(); return typeof ev.data === 'string' ? onText(JSON.parse(ev.data)) : onBinary(ev.data); };
+}
+function send(m) {
+  if (ws && ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify(m));
+}
+function message(text, isError = false) {
+  const div = document.createElement('div');
+  div.textContent = text;
+  if (isError) { div.className = 'error'; state.errors.push(text); }
+  const box = $('messages');
+  box.prepend(div);
+  while (box.children.length > 6) box.lastChild.remove();
+}
+function setBusy(job) {
+  state.busy = job;
+  $('cancel').disabled = !job;
+  $('progress').textContent = job ? `${job}…` : '';
+}
+
+function onText(m) {
+  switch (m.type) {
+    case 'hello':
+      $('example-select').replaceChildren(...m.examples.map((n) => new Option(n, n)));
+      $('example-select').value = 'windmill';
+      break;
+    case 'model': onModel(m); break;
+    case 'progress':
+      state.progress = m;
+      $('progress').textContent = `${m.job}: ${m.stage}` + (m.total ? ` ${m.done}/${m.total}` : m.done ? ` ${m.done}` : '');
+      break;
+    case 'cancelled': setBusy(null); message(`${m.job} cancelled`); break;
+    case 'annotation': setBusy(null); onAnnotation(m); break;
+    case 'saved': setBusy(null); state.saved.push(...m.paths); message(`wrote ${m.paths.join(', ')}`); break;
+    case 'handles':
+      state.handles = m.handles;
+      state.handleSamples = m.samples;
+      $('deform-info').textContent = `${m.handles} handle(s), samples ${m.samples.join(' / ')} of ${m.total_samples}, ${m.dof} DoF\n` +
+        `precompute ${m.session_ms.toFixed(0)} ms, factorisation ${m.prefactor_ms.toFixed(1)} ms`;
+      break;
+    case 'deformed': onDeformed(m); break;
+    case 'offsets': setBusy(null); onOffsets(m); break;
+    case 'retargeted': pendingBinary.push(m); break;
+    case 'detections': setBusy(null); onDetections(m); break;
+    case 'error':
+      if (m.request === 'drag') { inFlight = false; }
+      if (m.request !== 'drag' && m.request !== 'release' && m.request !== 'retarget' && m.request !== 'set_handles') setBusy(null);
+      message(m.message, true);
+      break;
+  }
+}
+
+function onBinary(buf) {
+  const h = new DataView(buf, 0, 32);
+  const kind = h.getUint32(0, true), seq = h.getUint32(4, true), nv = h.getUint32(8, true), nt = h.getUint32(12, true);
+  const solveMs = h.getFloat32(16, true);
+  const pos = new Float32Array(buf, 32, nv * 3);
+  if (kind === 1) setModelGeometry(pos, nt ? new Uint32Array(buf, 32 + nv * 12, nt * 3) : null);
+  else if (kind === 2) onFrame(seq, pos, solveMs);
+  else if (kind === 3) onRetargetedMesh(pos, new Uint32Array(buf, 32 + nv * 12, nt * 3), pendingBinary.shift());
+}
+
+// ---------------------------------------------------------------------------------------------
+// View
+function onModel(m) {
+  setBusy(null);
+  Object.assign(state, { name: m.name, vertices: m.vertices, triangles: m.triangles, isMesh: m.triangles > 0, bbox: m.bbox, diagonal: m.diagonal,
+    symmetryResidual: null, restResidual: null, handles: 0, offsets: null, cells: null, totalCells: null, detections: null, maxDisplacement: 0 });
+  const [lo, hi] = m.bbox;
+  const size = hi.map((v, k) => v - lo[k]);
+  $('model-info').textContent = `${m.name}\n${m.vertices} ${m.triangles ? 'vertices' : 'points'}, ${m.triangles} triangles\n` +
+    `size ${size.map((v) => v.toPrecision(3)).join(' × ')} (diagonal ${m.diagonal.toPrecision(3)})` +
+    (m.warnings.length ? `\n${m.warnings.join('\n')}` : '');
+  handles = []; undoStack = []; redoStack = []; updateUndo();
+  clearGroup(overlays.detections); clearGroup(overlays.offsets); clearGroup(overlays.symmetry); clearGroup(overlays.handles);
+  $('steps').replaceChildren(); $('resize-info').textContent = ''; $('detections-info').textContent = ''; $('deform-info').textContent = '';
+  $('symmetry-info').textContent = '';
+  if (retargetObject) { scene.remove(retargetObject); retargetObject.geometry.dispose(); retargetObject = null; }
+  gizmo.detach();
+  if (m.annotation) onAnnotation({ annotation: m.annotation, groups: [], max_residual: null, ok: true, ms: 0 });
+}
+
+function setModelGeometry(pos, index) {
+  if (object) { scene.remove(object); geometry.dispose(); }
+  geometry = new THREE.BufferGeometry();
+  const attr = new THREE.BufferAttribute(new Float32Array(pos), 3);
+  attr.setUsage(THREE.DynamicDrawUsage);
+  geometry.setAttribute('position', attr);
+  restPositions = new Float32Array(pos);
+  if (index) {
+    geometry.setIndex(new THREE.BufferAttribute(new Uint32Array(index), 1));
+    geometry.computeVertexNormals();
+    object = new THREE.Mesh(geometry, material);
+  } else {
+    object = new THREE.Points(geometry, pointMaterial);
+  }
+  scene.add(object);
+  geometry.computeBoundingBox();
+  geometry.computeBoundingSphere();
+  frameCamera();
+  drawBox();
+  state.meshVersion++;
+  requestRender();
+}
+
+function frameCamera() {
+  const s = geometry.boundingSphere;
+  orbit.target.copy(s.center);
+  camera.near = s.radius / 100; camera.far = s.radius * 100;
+  camera.position.copy(s.center).add(new THREE.Vector3(0.55, 0.35, 1).normalize().multiplyScalar(s.radius * 3.3));
+  camera.updateProjectionMatrix();
+  orbit.update();
+}
+
+function niceStep(x) {
+  const p = Math.pow(10, Math.floor(Math.log10(x)));
+  return [1, 2, 5, 10].map((k) => k * p).find((v) => v >= x) || p;
+}
+
+function drawBox() {
+  clearGroup(overlays.bbox);
+  const box = geometry.boundingBox;
+  overlays.bbox.add(new THREE.Box3Helper(box, 0x8a94aa));
+  const size = box.getSize(new THREE.Vector3());
+  const cell = niceStep(Math.max(size.x, size.z) / 8);
+  const n = Math.ceil(Math.max(size.x, size.z) / cell) + 2;
+  const grid = new THREE.GridHelper(n * cell, n, 0xb0b7c6, 0xd3d7df);
+  grid.position.set((box.min.x + box.max.x) / 2, box.min.y, (box.min.z + box.max.z) / 2);
+  overlays.bbox.add(grid);
+  state.gridCell = cell;
+  $('hud').dataset.scale = `grid ${cell}`;
+  updateHud();
+  overlays.bbox.visible = $('show-bbox').checked;
+}
+
+function clearGroup(g) {
+  for (const c of [...g.children]) {
+    g.remove(c);
+    c.traverse((o) => { if (o.geometry) o.geometry.dispose(); });
+  }
+}
+
+$('shade-flat').onchange = $('shade-smooth').onchange = () => {
+  material.flatShading = $('shade-flat').checked;
+  material.needsUpdate = true;
+  if (geometry && geometry.index) geometry.computeVertexNormals();
+  requestRender();
+};
+$('wireframe').onchange = () => { material.wireframe = $('wireframe').checked; requestRender(); };
+$('show-bbox').onchange = () => { overlays.bbox.visible = $('show-bbox').checked; requestRender(); };
+$('example-open').onclick = () => { setBusy('example'); send({ type: 'example', name: $('example-select').value }); };
+$('open-btn').onclick = () => { setBusy('open'); send({ type: 'open', path: $('open-path').value }); };
+$('upload').onchange = async () => {
+  const f = $('upload').files[0];
+  if (!f) return;
+  const name = new TextEncoder().encode(f.name);
+  const bytes = new Uint8Array(await f.arrayBuffer());
+  const msg = new Uint8Array(4 + name.length + bytes.length);
+  new DataView(msg.buffer).setUint32(0, name.length, true);
+  msg.set(name, 4); msg.set(bytes, 4 + name.length);
+  setBusy('upload');
+  ws.send(msg);
+  $('upload').value = '';
+};
+$('cancel').onclick = () => send({ type: 'cancel' });
+
+// ---------------------------------------------------------------------------------------------
+// Structure: symmetry elements drawn from the annotation's matrices.
+function classify(m) {
+  // m: row-major 4x4. Linear part R, translation t.
+  const R = new THREE.Matrix3().set(m[0][0], m[0][1], m[0][2], m[1][0], m[1][1], m[1][2], m[2][0], m[2][1], m[2][2]);
+  const t = new THREE.Vector3(m[0][3], m[1][3], m[2][3]);
+  const det = R.determinant();
+  const e = R.elements; // column-major
+  const r = (i, j) => e[j * 3 + i];
+  const trace = r(0, 0) + r(1, 1) + r(2, 2);
+  if (det < 0 && Math.abs(trace - 1) < 1e-3) {
+    // Reflection R = I - 2 n nᵀ: n from the largest column of I - R; the plane holds t / 2.
+    let best = null;
+    for (let j = 0; j < 3; j++) {
+      const c = new THREE.Vector3((j === 0) - r(0, j), (j === 1) - r(1, j), (j === 2) - r(2, j));
+      if (!best || c.lengthSq() > best.lengthSq()) best = c;
+    }
+    return { kind: 'mirror', normal: best.normalize(), point: t.clone().multiplyScalar(0.5) };
+  }
+  if (det > 0 && trace < 3 - 1e-6) {
+    const axis = new THREE.Vector3(r(2, 1) - r(1, 2), r(0, 2) - r(2, 0), r(1, 0) - r(0, 1));
+    const angle = Math.acos(Math.min(1, Math.max(-1, (trace - 1) / 2)));
+    if (axis.lengthSq() < 1e-12) {
+      // 180°: axis from the largest column of R + I.
+      let best = null;
+      for (let j = 0; j < 3; j++) {
+        const c = new THREE.Vector3(r(0, j) + (j === 0), r(1, j) + (j === 1), r(2, j) + (j === 2));
+        if (!best || c.lengthSq() > best.lengthSq()) best = c;
+      }
+      axis.copy(best);
+    }
+    axis.normalize();
+    // A point of the axis: (I - R + a aᵀ) p = t.
+    const A = new THREE.Matrix3().set(
+      1 - r(0, 0) + axis.x * axis.x, -r(0, 1) + axis.x * axis.y, -r(0, 2) + axis.x * axis.z,
+      -r(1, 0) + axis.y * axis.x, 1 - r(1, 1) + axis.y * axis.y, -r(1, 2) + axis.y * axis.z,
+      -r(2, 0) + axis.z * axis.x, -r(2, 1) + axis.z * axis.y, 1 - r(2, 2) + axis.z * axis.z);
+    const p = t.clone().applyMatrix3(A.invert());
+    return { kind: 'rotation', axis, point: p, order: Math.round((2 * Math.PI) / angle) };
+  }
+  return { kind: 'other' };
+}
+
+function onAnnotation(m) {
+  clearGroup(overlays.symmetry);
+  const a = m.annotation;
+  const center = geometry ? geometry.boundingSphere.center : new THREE.Vector3();
+  const size = state.diagonal || 1;
+  let mirrors = 0, axes = 0, instanceSets = 0;
+  for (const s of a.symmetries) {
+    if (!s.generators) { instanceSets++; continue; }
+    for (const g of s.generators) {
+      const el = classify(g);
+      if (el.kind === 'mirror') {
+        mirrors++;
+        const plane = new THREE.Mesh(new THREE.PlaneGeometry(size * 0.8, size * 0.8),
+          new THREE.MeshBasicMaterial({ color: 0x3b82f6, transparent: true, opacity: 0.16, side: THREE.DoubleSide, depthWrite: false }));
+        const onPlane = center.clone().sub(el.normal.clone().multiplyScalar(center.clone().sub(el.point).dot(el.normal)));
+        plane.position.copy(onPlane);
+        plane.quaternion.setFromUnitVectors(new THREE.Vector3(0, 0, 1), el.normal);
+        overlays.symmetry.add(plane);
+      } else if (el.kind === 'rotation') {
+        axes++;
+        const foot = el.point.clone().add(el.axis.clone().multiplyScalar(center.clone().sub(el.point).dot(el.axis)));
+        const half = el.axis.clone().multiplyScalar(size * 0.45);
+        const line = new THREE.Line(new THREE.BufferGeometry().setFromPoints([foot.clone().sub(half), foot.clone().add(half)]),
+          new THREE.LineBasicMaterial({ color: 0xe4572e }));
+        overlays.symmetry.add(line);
+      }
+    }
+  }
+  state.annotation = { symmetries: a.symmetries.length, mirrors, axes, instanceSets, ok: m.ok, maxResidual: m.max_residual };
+  const groups = m.groups.map((g) => `${g.schoenflies} (order ${g.order}), residual ${g.max_residual.toExponential(1)}`).join('\n');
+  $('symmetry-info').textContent = `${a.symmetries.length} symmetries: ${mirrors} mirror plane(s), ${axes} rotation axis(es)` +
+    (instanceSets ? `, ${instanceSets} instance set(s)` : '') + (groups ? `\n${groups}` : '') +
+    (m.max_residual != null ? `\nannotation residual ${m.max_residual.toExponential(2)} of the diagonal${m.ok ? '' : ' (does not fit!)'}` : '');
+  overlays.symmetry.visible = $('show-symmetry').checked;
+  // A new annotation means a new deformation session on the server.
+  handles = []; clearGroup(overlays.handles); gizmo.detach(); state.handles = 0;
+  requestRender();
+}
+$('show-symmetry').onchange = () => { overlays.symmetry.visible = $('show-symmetry').checked; requestRender(); };
+$('detect-symmetry').onclick = () => { setBusy('detect_symmetry'); send({ type: 'detect_symmetry' }); };
+$('load-annotation').onclick = () => { setBusy('load_annotation'); send({ type: 'load_annotation', path: $('annotation-path').value }); };
+$('save-annotation').onclick = () => { setBusy('save_annotation'); send({ type: 'save_annotation', path: $('annotation-path').value }); };
+
+const palette = [0xe6194b, 0x3cb44b, 0x4363d8, 0xf58231, 0x911eb4, 0x42d4f4, 0xf032e6, 0x9a6324, 0x469990, 0x800000];
+function onDetections(m) {
+  clearGroup(overlays.detections);
+  const colors = new Float32Array(m.point_class.length * 3);
+  const c = new THREE.Color();
+  m.point_class.forEach((k, i) => {
+    c.set(k < 0 ? 0x9aa3b5 : palette[k % palette.length]);
+    colors.set([c.r, c.g, c.b], i * 3);
+  });
+  const g = new THREE.BufferGeometry();
+  g.setAttribute('position', geometry.getAttribute('position'));
+  g.setAttribute('color', new THREE.BufferAttribute(colors, 3));
+  overlays.detections.add(new THREE.Points(g, new THREE.PointsMaterial({ size: 3, sizeAttenuation: false, vertexColors: true })));
+  let instances = 0;
+  m.classes.forEach((cl, k) => {
+    for (const [lo, hi] of cl.boxes) {
+      instances++;
+      overlays.detections.add(new THREE.Box3Helper(new THREE.Box3(new THREE.Vector3(...lo), new THREE.Vector3(...hi)), palette[k % palette.length]));
+    }
+  });
+  state.detections = { scene: m.scene, classes: m.classes.length, instances, coloured: m.point_class.filter((k) => k >= 0).length };
+  const info = $('detections-info');
+  info.replaceChildren(document.createTextNode(`${m.scene}: ${m.classes.length} classes, ${instances} instances`));
+  info.classList.add('legend');
+  m.classes.forEach((cl, k) => {
+    const d = document.createElement('div');
+    const sw = document.createElement('span');
+    sw.style.background = '#' + palette[k % palette.length].toString(16).padStart(6, '0');
+    d.append(sw, `${cl.name}: ${cl.boxes.length} instances, ${cl.points} points`);
+    info.append(d);
+  });
+  overlays.detections.visible = $('show-detections').checked;
+  requestRender();
+}
+$('show-detections').onchange = () => { overlays.detections.visible = $('show-detections').checked; requestRender(); };
+$('load-detections').onclick = () => { setBusy('load_detections'); send({ type: 'load_detections', path: $('detections-path').value }); };
+$('detect').onclick = () => { setBusy('detect'); send({ type: 'detect' }); };
+
+// ---------------------------------------------------------------------------------------------
+// Deform: handles are unions of balls on the rest shape; each has a rest→target transform.
+let handles = []; // { balls: [{center:[x,y,z], radius}], matrix: THREE.Matrix4 }
+let active = -1;
+let undoStack = [], redoStack = [];
+let seq = 0, inFlight = false, wantFrame = false;
+const sentAt = new Map();
+
+$('radius-value').textContent = $('handle-radius').value;
+$('handle-radius').oninput = () => { $('radius-value').textContent = $('handle-radius').value; };
+$('gizmo-translate').onchange = $('gizmo-rotate').onchange = () => gizmo.setMode($('gizmo-rotate').checked ? 'rotate' : 'translate');
+
+function restCentroid(h) {
+  const c = new THREE.Vector3();
+  h.balls.forEach((b) => c.add(new THREE.Vector3(...b.center)));
+  return c.multiplyScalar(1 / h.balls.length);
+}
+function snapshot() {
+  return handles.map((h) => ({ balls: h.balls.map((b) => ({ center: [...b.center], radius: b.radius })), matrix: h.matrix.clone() }));
+}
+function pushUndo() { undoStack.push(snapshot()); redoStack = []; updateUndo(); }
+function updateUndo() { state.undo = undoStack.length; state.redo = redoStack.length; }
+function transformsArray() {
+  return handles.map((h) => { const e = h.matrix.clone().transpose().elements; return [e.slice(0, 4), e.slice(4, 8), e.slice(8, 12), e.slice(12, 16)]; });
+}
+function drawHandles() {
+  clearGroup(overlays.handles);
+  handles.forEach((h, i) => {
+    for (const b of h.balls) {
+      const s = new THREE.Mesh(new THREE.SphereGeometry(b.radius, 16, 12),
+        new THREE.MeshBasicMaterial({ color: i === active ? 0xf59e0b : 0x10b981, wireframe: true, transparent: true, opacity: 0.6 }));
+      s.position.set(...b.center).applyMatrix4(h.matrix);
+      overlays.handles.add(s);
+    }
+  });
+  requestRender();
+}
+function placeGizmo() {
+  if (active < 0) { gizmo.detach(); return; }
+  const h = handles[active];
+  const g = h.matrix.clone().multiply(new THREE.Matrix4().makeTranslation(restCentroid(h)));
+  g.decompose(gizmoTarget.position, gizmoTarget.quaternion, gizmoTarget.scale);
+  gizmoTarget.updateMatrixWorld();
+  gizmo.attach(gizmoTarget);
+}
+function sendHandles() {
+  state.symmetryResidual = null;
+  send({ type: 'set_handles', handles: handles.map((h) => ({ balls: h.balls })) });
+  if (handles.length) requestFrame(true); else showRest();
+}
+function showRest() {
+  if (!geometry || !restPositions) return;
+  geometry.getAttribute('position').array.set(restPositions);
+  geometry.getAttribute('position').needsUpdate = true;
+  if (geometry.index) geometry.computeVertexNormals();
+  state.meshVersion++;
+  requestRender();
+}
+
+function pick(ev) {
+  if (!object || !state.isMesh) return;
+  const rect = renderer.domElement.getBoundingClientRect();
+  const ndc = new THREE.Vector2(((ev.clientX - rect.left) / rect.width) * 2 - 1, -((ev.clientY - rect.top) / rect.height) * 2 + 1);
+  const ray = new THREE.Raycaster();
+  ray.setFromCamera(ndc, camera);
+  const hit = ray.intersectObject(object, false)[0];
+  if (!hit) return;
+  // Back to the rest shape through barycentric coordinates of the hit triangle.
+  const pos = geometry.getAttribute('position');
+  const [a, b, c] = [hit.face.a, hit.face.b, hit.face.c];
+  const P = (arr, i) => new THREE.Vector3(arr[3 * i], arr[3 * i + 1], arr[3 * i + 2]);
+  const bary = THREE.Triangle.getBarycoord(hit.point, P(pos.array, a), P(pos.array, b), P(pos.array, c), new THREE.Vector3());
+  const rest = P(restPositions, a).multiplyScalar(bary.x).add(P(restPositions, b).multiplyScalar(bary.y)).add(P(restPositions, c).multiplyScalar(bary.z));
+  const ball = { center: rest.toArray(), radius: parseFloat($('handle-radius').value) * state.diagonal };
+  if (ev.shiftKey && active >= 0) {
+    handles[active].balls.push(ball);
+  } else {
+    handles.push({ balls: [ball], matrix: new THREE.Matrix4() });
+    active = handles.length - 1;
+  }
+  pushUndo();
+  placeGizmo();
+  drawHandles();
+  sendHandles();
+}
+let downAt = null;
+renderer.domElement.addEventListener('pointerdown', (ev) => { downAt = gizmo.axis ? null : [ev.clientX, ev.clientY]; });
+renderer.domElement.addEventListener('pointerup', (ev) => {
+  if (downAt && Math.hypot(ev.clientX - downAt[0], ev.clientY - downAt[1]) < 4 && !gizmo.dragging) pick(ev);
+  downAt = null;
+});
+
+function onGizmoMove() {
+  if (active < 0) return;
+  const h = handles[active];
+  gizmoTarget.updateMatrixWorld();
+  h.matrix.copy(gizmoTarget.matrixWorld).multiply(new THREE.Matrix4().makeTranslation(restCentroid(h).negate()));
+  drawHandles();
+  requestFrame(false);
+}
+function requestFrame(force) {
+  if (!handles.length) return;
+  if (inFlight && !force) { wantFrame = true; return; }
+  inFlight = true; wantFrame = false;
+  seq = (seq + 1) >>> 0;
+  sentAt.set(seq, performance.now());
+  send({ type: 'drag', seq, transforms: transformsArray() });
+}
+let releaseWanted = false;
+function endDrag() {
+  pushUndo();
+  releaseWanted = true;
+  if (!inFlight && !wantFrame) { send({ type: 'release' }); releaseWanted = false; }
+}
+
+function onFrame(s, pos, solveMs) {
+  const t0 = sentAt.get(s);
+  sentAt.delete(s);
+  for (const k of sentAt.keys()) if (k < s) sentAt.delete(k);
+  const attr = geometry.getAttribute('position');
+  if (attr.array.length === pos.length) {
+    attr.array.set(pos);
+    attr.needsUpdate = true;
+    if (!material.flatShading) geometry.computeVertexNormals();
+    geometry.computeBoundingSphere();
+    renderer.render(scene, camera);
+    renderer.getContext().finish();
+    state.meshVersion++;
+  }
+  if (t0 !== undefined) {
+    const dt = performance.now() - t0;
+    state.lastFrameMs = dt;
+    state.lastSolveMs = solveMs;
+    state.framesReceived++;
+    state.frameTimes.push(dt);
+    // Breakdown: server solve, transfer (send → received, less the solve), upload + draw.
+    state.frameLog.push({ total: dt, solve: solveMs, transfer: lastRecv - t0 - solveMs, draw: performance.now() - lastRecv });
+    if (state.frameLog.length > 2000) state.frameLog.shift();
+    if (state.frameTimes.length > 1000) state.frameTimes.shift();
+    const recent = state.frameTimes.slice(-60).sort((a, b) => a - b);
+    state.medianFrameMs = recent[Math.floor(recent.length / 2)];
+    updateHud();
+  }
+  inFlight = false;
+  if (wantFrame) requestFrame(false);
+  else if (releaseWanted) { send({ type: 'release' }); releaseWanted = false; }
+}
+function updateHud() {
+  const f = state.lastFrameMs == null ? 'frame —' :
+    `frame ${state.lastFrameMs.toFixed(1)} ms (median ${state.medianFrameMs.toFixed(1)}, ${(1000 / state.medianFrameMs).toFixed(0)} fps) · solve ${state.lastSolveMs.toFixed(1)} ms`;
+  $('frame-time').textContent = f + (state.gridCell ? ` · grid ${state.gridCell}` : '');
+}
+function onDeformed(m) {
+  state.symmetryResidual = m.residual;
+  state.restResidual = m.rest_residual;
+  state.released++;
+  const pos = geometry.getAttribute('position').array;
+  let maxd = 0;
+  for (let i = 0; i < pos.length; i += 3) {
+    const d = Math.hypot(pos[i] - restPositions[i], pos[i + 1] - restPositions[i + 1], pos[i + 2] - restPositions[i + 2]);
+    if (d > maxd) maxd = d;
+  }
+  state.maxDisplacement = maxd / (state.diagonal || 1);
+  $('deform-info').textContent = `${state.handles} handle(s); largest move ${(state.maxDisplacement * 100).toFixed(1)}% of the diagonal\n` +
+    (m.residual == null ? 'no symmetry annotation' : `symmetry residual ${m.residual.toExponential(2)} (rest ${m.rest_residual.toExponential(2)})`) +
+    `\nhandle fit ${m.handle_error.toExponential(2)}, solve ${m.solve_ms.toFixed(1)} ms`;
+}
+function applySnapshot(s) {
+  handles = s.map((h) => ({ balls: h.balls.map((b) => ({ ...b })), matrix: h.matrix.clone() }));
+  active = handles.length - 1;
+  placeGizmo(); drawHandles(); sendHandles();
+  if (handles.length) releaseWanted = true;
+}
+$('undo').onclick = () => {
+  if (!undoStack.length) return;
+  redoStack.push(undoStack.pop());
+  applySnapshot(undoStack.length ? undoStack[undoStack.length - 1] : []);
+  updateUndo();
+};
+$('redo').onclick = () => {
+  if (!redoStack.length) return;
+  const s = redoStack.pop();
+  undoStack.push(s);
+  applySnapshot(s);
+  updateUndo();
+};
+$('reset').onclick = () => { applySnapshot([]); pushUndo(); state.maxDisplacement = 0; };
+$('export-format').onchange = () => { $('export-path').value = $('export-path').value.replace(/\.[^.\/]*$/, '') + '.' + $('export-format').value; };
+$('export').onclick = () => { setBusy('export'); send({ type: 'export', path: $('export-path').value, source: 'deformed' }); };
+
+// ---------------------------------------------------------------------------------------------
+// Resize
+let retargetSeq = 0;
+function onOffsets(m) {
+  clearGroup(overlays.offsets);
+  state.offsets = { principal: m.principal.length, cells: m.cells, summary: m.summary };
+  state.cells = m.cells; state.totalCells = m.cells.reduce((a, b) => a * b, 1);
+  const steps = $('steps');
+  steps.replaceChildren();
+  if (!m.principal.length) { $('resize-info').textContent = `no repetition: ${m.summary}`; requestRender(); return; }
+  const origin = geometry.boundingBox.min.clone();
+  m.principal.forEach((o, k) => {
+    const v = new THREE.Vector3(...o);
+    overlays.offsets.add(new THREE.ArrowHelper(v.clone().normalize(), origin, v.length(), palette[k], v.length() * 0.25, v.length() * 0.12));
+    const row = document.createElement('div');
+    row.className = 'row';
+    row.innerHTML = `<label>offset ${k} (${v.length().toPrecision(3)}) <input type="range" id="step-${k}" min="-3" max="6" step="1" value="0"><span id="step-${k}-value">0</span></label>`;
+    steps.append(row);
+  });
+  m.principal.forEach((_, k) => { $(`step-${k}`).oninput = () => { $(`step-${k}-value`).textContent = $(`step-${k}`).value; sendRetarget(); }; });
+  $('resize-info').textContent = `${m.principal.length} principal offset(s); cells ${m.cells.join(' × ')}; ${m.ms.toFixed(0)} ms\n${m.summary}`;
+  requestRender();
+}
+function sendRetarget() {
+  const s = [0, 1, 2].map((k) => ($(`step-${k}`) ? parseInt($(`step-${k}`).value, 10) : 0));
+  retargetSeq++;
+  send({ type: 'retarget', seq: retargetSeq, steps: s });
+}
+function onRetargetedMesh(pos, index, m) {
+  if (retargetObject) { scene.remove(retargetObject); retargetObject.geometry.dispose(); }
+  const g = new THREE.BufferGeometry();
+  g.setAttribute('position', new THREE.BufferAttribute(new Float32Array(pos), 3));
+  g.setIndex(new THREE.BufferAttribute(new Uint32Array(index), 1));
+  g.computeVertexNormals();
+  retargetObject = new THREE.Mesh(g, new THREE.MeshStandardMaterial({ color: 0xd9b98c, roughness: 0.7, flatShading: true, side: THREE.DoubleSide }));
+  scene.add(retargetObject);
+  object.visible = $('show-original').checked;
+  state.cells = m.cells; state.totalCells = m.total_cells; state.retargetVertices = m.vertices; state.retargetVersion++;
+  $('resize-info').textContent = `steps ${m.steps.join(', ')}: cells ${m.cells.join(' × ')} = ${m.total_cells}\n${m.vertices} vertices, ${m.triangles} triangles, ${m.ms.toFixed(0)} ms`;
+  requestRender();
+}
+$('show-original').onchange = () => { if (object) object.visible = $('show-original').checked || !retargetObject; requestRender(); };
+$('find-offsets').onclick = () => { setBusy('offsets'); send({ type: 'offsets' }); };
+$('export-resized').onclick = () => { setBusy('export'); send({ type: 'export', path: $('export-resized-path').value, source: 'retargeted' }); };
+
+// Test helpers: where a world point appears on screen, and a rest vertex.
+window.motif.project = (p) => {
+  const v = new THREE.Vector3(...p).project(camera);
+  const rect = renderer.domElement.getBoundingClientRect();
+  return { x: rect.left + ((v.x + 1) / 2) * rect.width, y: rect.top + ((1 - v.y) / 2) * rect.height };
+};
+window.motif.restVertex = (i) => [restPositions[3 * i], restPositions[3 * i + 1], restPositions[3 * i + 2]];
+window.motif.gizmoScreen = () => (active >= 0 ? window.motif.project(gizmoTarget.position.toArray()) : null);
+
+resize();
+connect();
