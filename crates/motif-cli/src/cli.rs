@@ -325,8 +325,32 @@ pub struct ExampleArgs {
     /// List the available examples.
     #[arg(long)]
     pub list: bool,
+    /// Benchmark scenes (scene-*): also write the building-block ground truth as JSON (the
+    /// schema `motif eval` reads).
+    #[arg(long, value_name = "FILE")]
+    pub gt: Option<PathBuf>,
+    /// Benchmark scenes: noise, variation, occlusion, clutter and irregularity preset.
+    #[arg(long, value_enum)]
+    pub difficulty: Option<DifficultyArg>,
+    /// Benchmark scenes: number of points (default 300000).
+    #[arg(long)]
+    pub points: Option<usize>,
+    /// Benchmark scenes: meshes used as extra building blocks, comma-separated.
+    #[arg(long, value_delimiter = ',', value_name = "FILES")]
+    pub parts: Vec<PathBuf>,
     #[command(flatten)]
     pub encoding: EncodingArgs,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum, Default, PartialEq)]
+pub enum DifficultyArg {
+    /// Regular placement, little noise, no variation, occlusion or clutter.
+    Easy,
+    /// Irregular placement, some noise and variation, three scanners, some clutter.
+    #[default]
+    Medium,
+    /// Irregular placement, strong noise and variation, one scanner, clutter and outliers.
+    Hard,
 }
 
 #[derive(Debug, Args)]

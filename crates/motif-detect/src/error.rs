@@ -39,15 +39,23 @@ pub enum DetectError {
         /// Why the value is rejected.
         message: String,
     },
+    /// Input data the algorithm cannot work with (empty cloud, NaN coordinates, ...).
+    #[error("invalid input: {0}")]
+    InvalidInput(String),
+    /// A geometry-core operation (kd-tree, ICP, sampling, file IO) failed.
+    #[error(transparent)]
+    Core(#[from] motif_core::Error),
+    /// A mesh given as a benchmark-scene part cannot be read or used.
+    #[error("scene part {path}: {message}")]
+    ScenePart {
+        /// The part's file.
+        path: PathBuf,
+        /// What is wrong with it.
+        message: String,
+    },
     /// [`crate::eval::evaluate_many`] was given no scenes, so there is nothing to average.
     #[error("no scenes to evaluate: give at least one (detection, ground truth) pair")]
     NoScenes,
-    /// The input cannot be processed (NaN coordinates, mismatched normals, …).
-    #[error("{0}")]
-    InvalidInput(String),
-    /// A geometry-core operation failed (reading, sampling, curvature, …).
-    #[error(transparent)]
-    Core(#[from] motif_core::Error),
     /// A picture could not be drawn or written.
     #[error("picture {path}: {message}")]
     Plot {

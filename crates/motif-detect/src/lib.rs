@@ -11,7 +11,9 @@
 //!   read, written and validated;
 //! - [`eval`]: the evaluation protocol of thesis 5.5.2 (box matching, precision, recall, F, the
 //!   PR curve by class removal and the stress curve over the overlap threshold τ);
-//! - [`plot`]: the PR and stress curves as a PNG (like the thesis's Fig. 5.9).
+//! - [`plot`]: the PR and stress curves as a PNG (like the thesis's Fig. 5.9);
+//! - [`scenes`]: benchmark point clouds of facades and streets with ground truth, at graded
+//!   difficulty.
 
 #![warn(missing_docs)]
 
@@ -26,12 +28,14 @@ pub mod instances;
 pub mod pipeline;
 pub mod plot;
 pub mod preprocess;
+pub mod scenes;
 
 pub use detection::{DetectedClass, DetectedInstance, DetectionResult};
 pub use error::{DetectError, Result};
 pub use eval::{EvalOptions, EvalReport, EvalSummary, evaluate, evaluate_many};
 pub use pipeline::{DetectOptions, DetectReport, Detection, Method, detect, detect_mesh};
 pub use plot::{EvalCurves, plot_pr_and_stress};
+pub use scenes::{Difficulty, Scene, SceneKind, SceneOptions, generate_scene};
 
 /// The thesis chapter this crate implements, for reports and `--version` output.
 pub const THESIS_CHAPTER: &str = "5: approximate 3D partial symmetry detection by co-occurrence analysis";

@@ -1,21 +1,37 @@
 //! `motif example`: procedural shapes with known structure.
 
+use std::path::Path;
+use std::time::Instant;
+
 use motif_core::io::Model;
 use motif_core::procedural;
+use motif_detect::scenes::{Difficulty, SceneKind, SceneOptions, generate_scene, scene_names};
 
-use crate::cli::{ExampleArgs, GlobalArgs};
-use crate::output::{bad_input, write_json};
+use crate::cli::{DifficultyArg, ExampleArgs, GlobalArgs};
+use crate::output::{bad_input, check_output, write_json};
 
 pub fn run(a: ExampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     if a.list {
         for name in procedural::names() {
             println!("{name}");
         }
+        for name in scene_names() {
+            println!("{name}");
+        }
         return Ok(());
     }
-    let (Some(name), Some(output)) = (a.name, a.output) else {
+    let (Some(name), Some(output)) = (a.name.clone(), a.output.clone()) else {
         return Err(bad_input("usage: motif example NAME OUT (or motif example --list)"));
     };
+    if let Some(kind) = SceneKind::from_name(&name) {
+        return run_scene(kind, &output, &a, g);
+    }
+    if a.gt.is_some() || a.difficulty.is_some() || a.points.is_some() || !a.parts.is_empty() {
+        return Err(bad_input(format!(
+            "--gt, --difficulty, --points and --parts apply to the benchmark scenes ({}), not to {name}",
+            scene_names().join(", ")
+        )));
+    }
     let ex = procedural::generate(&name, g.seed)?;
     let model = Model::from_mesh(&ex.mesh);
     super::write_model(&output, &model, &[], g, &super::write_options(&a.encoding))?;
@@ -76,4 +92,62 @@ fn sample_drag(mesh: &motif_core::TriMesh) -> motif_deform::HandlesFile {
         })
         .collect();
     file
+}
+
+/// `motif example scene-... OUT.ply [--gt GT.json]`: a benchmark point cloud with normals and its
+/// building-block ground truth.
+fn run_scene(kind: SceneKind, output: &Path, a: &ExampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    if a.structure.is_some() || a.annotation.is_some() || a.handles.is_some() {
+        return Err(bad_input(format!(
+            "{}: --structure, --annotation and --handles are for the shapes; a scene writes its ground truth with --gt",
+            kind.name()
+        )));
+    }
+    let difficulty = match a.difficulty.unwrap_or_default() {
+        DifficultyArg::Easy => Difficulty::Easy,
+        DifficultyArg::Medium => Difficulty::Medium,
+        DifficultyArg::Hard => Difficulty::Hard,
+    };
+    let options = SceneOptions {
+        difficulty,
+        points: a.points.unwrap_or(SceneOptions::default().points),
+        seed: g.seed,
+        parts: a.parts.clone(),
+        ..Default::default()
+    };
+    let parts: Vec<&Path> = a.parts.iter().map(|p| p.as_path()).collect();
+    check_output(output, &parts, g.force)?;
+    if let Some(gt) = &a.gt {
+        let mut inputs = parts.clone();
+        inputs.push(output);
+        check_output(gt, &inputs, g.force)?;
+        if gt.as_path() == output {
+            return Err(bad_input(format!("{}: the ground truth and the cloud need different files", gt.display())));
+        }
+    }
+    let t = Instant::now();
+    let mut scene = generate_scene(kind, &options)?;
+    let seconds = t.elapsed().as_secs_f64();
+    scene.ground_truth.scene =
+        output.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_else(|| kind.name().into());
+    let (n, classes, instances) =
+        (scene.cloud.len(), scene.ground_truth.classes.len(), scene.ground_truth.instance_count());
+    let model = Model::from_point_cloud(scene.cloud);
+    super::write_model(output, &model, &parts, g, &super::write_options(&a.encoding))?;
+    if let Some(gt) = &a.gt {
+        write_json(gt, &scene.ground_truth)?;
+    }
+    super::note(
+        g,
+        format!(
+            "wrote {} ({}, {}: {n} points, {classes} classes, {instances} instances, noise {:.1} mm, {:.0}% of the surface visible; {seconds:.2} s){}",
+            output.display(),
+            kind.name(),
+            difficulty.name(),
+            1000.0 * scene.stats.noise_sigma,
+            100.0 * scene.stats.visible_fraction,
+            a.gt.as_ref().map(|p| format!("; ground truth in {}", p.display())).unwrap_or_default()
+        ),
+    );
+    Ok(())
 }
