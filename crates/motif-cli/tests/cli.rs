@@ -458,3 +458,62 @@ fn eval_scores_a_detection_against_ground_truth() {
     assert!(stderr(&o).contains("bad.json"), "{}", stderr(&o));
     assert_eq!(motif(&["eval", "det.json"], d.path()).status.code(), Some(2));
 }
+
+#[test]
+fn detect_names_a_nan_point_and_writes_nothing() {
+    let dir = tmp();
+    let ply = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n1 0 0\n0 nan 0\n0 0 1\n";
+    std::fs::write(dir.path().join("bad.ply"), ply).unwrap();
+    let o = motif(&["detect", "bad.ply", "-o", "out.json", "--labels", "out.ply"], dir.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("bad.ply") && stderr(&o).contains("vertex 2"), "{}", stderr(&o));
+    assert!(!dir.path().join("out.json").exists() && !dir.path().join("out.ply").exists());
+}
+
+#[test]
+fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
+    let dir = tmp();
+    let o = motif(
+        &[
+            "example",
+            "scene-facade",
+            "s.ply",
+            "--gt",
+            "s.gt.json",
+            "--difficulty",
+            "easy",
+            "--points",
+            "60000",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = motif(
+        &[
+            "detect",
+            "s.ply",
+            "-o",
+            "r.json",
+            "--labels",
+            "l.ply",
+            "--as-symmetry",
+            "a.json",
+            "--epsilon",
+            "0.0012",
+            "--json",
+            "rep.json",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rep: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("rep.json")).unwrap()).unwrap();
+    assert!(rep["report"]["features"].as_u64().unwrap() > 0);
+    let ann: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("a.json")).unwrap()).unwrap();
+    assert_eq!(ann["format"], "motif_symmetry_v1");
+    let o = motif(&["info", "l.ply"], dir.path());
+    assert!(stdout(&o).contains("class") && stdout(&o).contains("instance"), "{}", stdout(&o));
+    let o = motif(&["eval", "r.json", "s.gt.json"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+}

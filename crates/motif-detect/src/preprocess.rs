@@ -53,6 +53,11 @@ pub struct PreprocessOptions {
     /// the model's size: a sharp crease measured at radius r reads |κ₁| r ≈ 0.5–1, a flat wall
     /// with scanner noise of amplitude σ reads about σ / r. Default 0.15.
     pub kappa_threshold: f64,
+    /// Keep at most this many features, the strongest |κ₁| first. Not in the thesis: on noisy
+    /// scans the threshold alone lets scanner noise through as features by the ten thousand,
+    /// and the EM's cost grows with the square of the word sizes; the strongest creases carry
+    /// the structure. Default 4,000.
+    pub max_features: usize,
     /// Refuse inputs whose resampled point count, estimated before resampling, exceeds this (issue
     /// 5: an absurd ε is an error unless forced). Default 5·10⁷.
     pub max_points: usize,
@@ -67,6 +72,7 @@ impl Default for PreprocessOptions {
             curvature_radius: 4.0,
             nms_radius: 2.0,
             kappa_threshold: 0.15,
+            max_features: 4_000,
             max_points: 50_000_000,
             seed: 0,
         }
@@ -380,6 +386,9 @@ fn select_features(
             None => continue,
         };
         features.push(Feature { point: i, position: points[i], x, y, kappa: kappa[i] });
+        if features.len() >= o.max_features.max(1) {
+            break;
+        }
     }
     features
 }

@@ -38,6 +38,7 @@ pub fn options(a: &DetectArgs, g: &GlobalArgs) -> DetectOptions {
         (None, None) => Epsilon::Auto,
     };
     o.preprocess.kappa_threshold = a.kappa;
+    o.preprocess.max_features = a.max_features;
     o.dictionary.words = a.words;
     o.dictionary.sigma = a.sigma;
     o.dictionary.tolerance = a.tolerance;

@@ -2,6 +2,7 @@
 
 mod align;
 mod bench;
+mod bench_detect;
 mod convert;
 mod curvature;
 mod deform;
@@ -44,6 +45,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Symmetry(SymmetryCommand::Check(a)) => symmetry::check(a, g),
         Command::Deform(a) => deform::run(a, g),
         Command::Bench(BenchCommand::Deform(a)) => bench::deform(a, g),
+        Command::Bench(BenchCommand::Detect(a)) => bench_detect::run(a, g),
         Command::Bench(BenchCommand::Studio(a)) => bench::studio(a, g),
         Command::Retarget(a) => retarget::run(a, g),
         Command::Offsets(a) => offsets::offsets(a, g),
