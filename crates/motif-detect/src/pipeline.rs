@@ -405,7 +405,7 @@ fn to_result(
     let tree = if classes.is_empty() { None } else { Some(KdTree::new(&cloud.positions)?) };
     let mut out = Vec::new();
     for (ci, c) in classes.iter().enumerate() {
-        let first = c.instances.first().map(|i| invert_rigid(&i.frame));
+        let first = c.instances.first().map(|i| motif_core::procedural::rigid_inverse(&i.frame));
         let mut instances = Vec::new();
         for (k, inst) in c.instances.iter().enumerate() {
             let centre = inst.aabb.center();
@@ -439,21 +439,4 @@ fn to_result(
         return Err(DetectError::InvalidInput("more than 2³² points".into()));
     }
     Ok((DetectionResult { scene: scene.to_string(), classes: out }, labels))
-}
-
-/// Inverse of a rigid 4×4 transform.
-fn invert_rigid(m: &motif_core::geometry::Mat4) -> motif_core::geometry::Mat4 {
-    let mut r = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            r[i][j] = m[j][i];
-        }
-    }
-    let t = [m[0][3], m[1][3], m[2][3]];
-    let rt = [
-        -(r[0][0] * t[0] + r[0][1] * t[1] + r[0][2] * t[2]),
-        -(r[1][0] * t[0] + r[1][1] * t[1] + r[1][2] * t[2]),
-        -(r[2][0] * t[0] + r[2][1] * t[1] + r[2][2] * t[2]),
-    ];
-    motif_core::geometry::mat4_from_rt(r, rt)
 }
