@@ -1,6 +1,7 @@
 //! One module per subcommand; each exposes `run(args, &GlobalArgs)`.
 
 mod align;
+mod baseline;
 mod bench;
 mod convert;
 mod curvature;
@@ -23,7 +24,7 @@ use anyhow::Context;
 use motif_core::io::{self, Model, PlyEncoding, StlEncoding, WriteOptions};
 
 use crate::cli::{
-    BenchCommand, Cli, Command, EncodingArgs, FeaturesCommand, MrfCommand, PlyEncodingArg, StlEncodingArg,
+    BaselineCommand, BenchCommand, Cli, Command, EncodingArgs, FeaturesCommand, MrfCommand, PlyEncodingArg, StlEncodingArg,
     SymmetryCommand,
 };
 
@@ -48,6 +49,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Sparsity(a) => offsets::sparsity(a, g),
         Command::Mrf(MrfCommand::Solve(a)) => mrf::solve(a, g),
         Command::Mrf(MrfCommand::Generate(a)) => mrf::generate(a, g),
+        Command::Baseline(BaselineCommand::RigidIcp(a)) => baseline::rigid_icp(a, g),
         Command::Example(a) => example::run(a, g),
         Command::Demo(a) => demo::run(a, g),
     }
