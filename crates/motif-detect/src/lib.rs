@@ -12,7 +12,7 @@
 //! - [`eval`]: the evaluation protocol of thesis 5.5.2 (box matching, precision, recall, F, the
 //!   PR curve by class removal and the stress curve over the overlap threshold τ);
 //! - [`plot`]: the PR and stress curves as a PNG (like the thesis's Fig. 5.9);
-//! - [`rigid_icp`]: the supervised rigid-ICP sliding-window baseline of 5.5.3;
+//! - [`mod@rigid_icp`]: the supervised rigid-ICP sliding-window baseline of 5.5.3;
 //! - [`scenes`]: benchmark point clouds of facades and streets with ground truth, at graded
 //!   difficulty.
 

@@ -186,7 +186,11 @@ impl RigidIcpOptions {
                 format!("{} / {} window points: use 8 to 100000", self.template_points, self.window_points),
             );
         }
-        if self.iterations == 0 || self.coarse_iterations == 0 || self.max_refined == 0 || self.max_windows == 0 {
+        if self.iterations == 0
+            || self.coarse_iterations == 0
+            || self.max_refined == 0
+            || self.max_windows == 0
+        {
             return bad("iterations", "need at least one ICP iteration and one refined window".into());
         }
         for (name, v) in [
@@ -200,7 +204,10 @@ impl RigidIcpOptions {
             }
         }
         if !(self.inlier_distance.is_finite() && self.inlier_distance > 0.0 && self.inlier_distance < 1.0) {
-            return bad("inlier_distance", format!("{} is outside (0, 1) template diagonals", self.inlier_distance));
+            return bad(
+                "inlier_distance",
+                format!("{} is outside (0, 1) template diagonals", self.inlier_distance),
+            );
         }
         if !(self.density_ratio.is_finite() && self.density_ratio >= 1.0) {
             return bad("density_ratio", format!("{} must be at least 1", self.density_ratio));
@@ -347,7 +354,8 @@ fn seeds(points: &[Point3], cell: f64) -> Vec<Point3> {
 /// Fraction of `template` points within `radius` of the scene after `transform` (how much of the
 /// template the scene explains).
 fn forward_score(template: &[Point3], transform: &Mat4, tree: &KdTree, radius: f64) -> f64 {
-    let hits = template.iter().filter(|p| tree.nearest(transform_point(transform, **p)).distance <= radius).count();
+    let hits =
+        template.iter().filter(|p| tree.nearest(transform_point(transform, **p)).distance <= radius).count();
     hits as f64 / template.len().max(1) as f64
 }
 
@@ -362,7 +370,14 @@ struct Template {
 /// `radius` of the moved template (how much of the scene in the window the template explains);
 /// 0 when the box holds no scene point.
 /// Only every `stride`-th scene point of the ball around the box is looked at (1: all).
-fn backward_score(t: &Template, transform: &Mat4, scene: &[Point3], tree: &KdTree, radius: f64, stride: usize) -> f64 {
+fn backward_score(
+    t: &Template,
+    transform: &Mat4,
+    scene: &[Point3],
+    tree: &KdTree,
+    radius: f64,
+    stride: usize,
+) -> f64 {
     let inv = rigid_inverse(transform);
     let centre = transform_point(transform, t.bbox.center());
     let (mut inside, mut hits) = (0usize, 0usize);
@@ -435,7 +450,11 @@ pub fn rigid_icp(
     }
     if let Some(n) = normals {
         if n.len() != positions.len() {
-            return Err(DetectError::InvalidInput(format!("{} normals for {} points", n.len(), positions.len())));
+            return Err(DetectError::InvalidInput(format!(
+                "{} normals for {} points",
+                n.len(),
+                positions.len()
+            )));
         }
     }
     let tree = KdTree::new(positions)?;
@@ -496,7 +515,7 @@ pub fn rigid_icp(
         let coarse: Vec<Point3> = template.iter().take(options.window_points).copied().collect();
         let all_points: Vec<Point3> = ids.iter().map(|&i| positions[i]).collect();
         let diag = Aabb::from_points(&template).map_or(0.0, |b| b.diagonal());
-        if !(diag > 0.0) {
+        if diag.is_nan() || diag <= 0.0 {
             report.skipped = Some("the template's points all coincide".into());
             reports.push(report);
             continue;
@@ -506,8 +525,9 @@ pub fn rigid_icp(
             let n = template.len() as f64;
             [s[0] / n, s[1] / n, s[2] / n]
         };
-        let radius =
-            (options.inlier_distance * diag).max(options.spacing_factor * spacing).max(options.noise_factor * noise);
+        let radius = (options.inlier_distance * diag)
+            .max(options.spacing_factor * spacing)
+            .max(options.noise_factor * noise);
         let rotate = match options.rotations {
             RotationSearch::Never => false,
             RotationSearch::Always => true,
@@ -518,7 +538,9 @@ pub fn rigid_icp(
                 .any(|t| yaw_of(t).abs() > 1f64.to_radians() || (t[1][1] - 1.0).abs() > 1e-3),
         };
         let yaws: Vec<f64> = if rotate {
-            (0..options.rotation_steps).map(|k| std::f64::consts::TAU * k as f64 / options.rotation_steps as f64).collect()
+            (0..options.rotation_steps)
+                .map(|k| std::f64::consts::TAU * k as f64 / options.rotation_steps as f64)
+                .collect()
         } else {
             vec![0.0]
         };
@@ -569,13 +591,17 @@ pub fn rigid_icp(
             trim_fraction: 1.0,
             max_correspondence_distance: Some(step.max(4.0 * radius)),
         };
-        let full = Template { tree: KdTree::new(&all_points)?, bbox: Aabb { min: first.bbox_min, max: first.bbox_max } };
+        let full = Template {
+            tree: KdTree::new(&all_points)?,
+            bbox: Aabb { min: first.bbox_min, max: first.bbox_max },
+        };
         let windows: Vec<Candidate> = starts
             .par_iter()
             .enumerate()
             .filter_map(|(index, &(seed, yaw))| {
                 let to_centroid = mat4_from_rt(IDENTITY3, [-centroid[0], -centroid[1], -centroid[2]]);
-                let initial = mat4_mul(&mat4_from_rt(rotation_about_axis([0.0, 1.0, 0.0], yaw), seed), &to_centroid);
+                let initial =
+                    mat4_mul(&mat4_from_rt(rotation_about_axis([0.0, 1.0, 0.0], yaw), seed), &to_centroid);
                 let c = icp_with_tree(&coarse, positions, &tree, normals, &initial, &coarse_options).ok()?;
                 // A window that wandered off its seed is another seed's business.
                 if dist(transform_point(&c.transform, centroid), seed) > 1.5 * step {
@@ -585,7 +611,8 @@ pub fn rigid_icp(
                 if forward < options.window_score {
                     return None;
                 }
-                let score = forward.min(backward_score(&full, &c.transform, positions, &tree, 2.0 * radius, 8));
+                let score =
+                    forward.min(backward_score(&full, &c.transform, positions, &tree, 2.0 * radius, 8));
                 (score >= options.window_score).then_some(Candidate { transform: c.transform, score, index })
             })
             .collect();
@@ -659,8 +686,9 @@ pub fn rigid_icp(
             let b = found[k].2[i].1;
             let clash = taken.iter().any(|(other, t)| {
                 *other != k
-                    && t.intersection(&b)
-                        .is_some_and(|x| x.volume() > options.nms_overlap * t.volume().min(b.volume()).max(1e-300))
+                    && t.intersection(&b).is_some_and(|x| {
+                        x.volume() > options.nms_overlap * t.volume().min(b.volume()).max(1e-300)
+                    })
             });
             if !clash {
                 keep[k][i] = true;
@@ -721,7 +749,8 @@ mod tests {
 
     #[test]
     fn moved_box_of_a_quarter_turn() {
-        let m = mat4_from_rt(rotation_about_axis([0.0, 1.0, 0.0], std::f64::consts::FRAC_PI_2), [10.0, 0.0, 0.0]);
+        let m =
+            mat4_from_rt(rotation_about_axis([0.0, 1.0, 0.0], std::f64::consts::FRAC_PI_2), [10.0, 0.0, 0.0]);
         let b = moved_box(&[0.0, 0.0, 0.0], &[2.0, 1.0, 1.0], &m);
         assert!((b.extent()[0] - 1.0).abs() < 1e-12 && (b.extent()[2] - 2.0).abs() < 1e-12);
         assert!((yaw_of(&m) - std::f64::consts::FRAC_PI_2).abs() < 1e-12);

@@ -28,7 +28,10 @@ pub fn rigid_icp(a: RigidIcpArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         if j.as_path() != std::path::Path::new("-") {
             check_output(j, &inputs, g.force)?;
             if j == &a.output {
-                return Err(bad_input(format!("{}: the report and the result need different files", j.display())));
+                return Err(bad_input(format!(
+                    "{}: the report and the result need different files",
+                    j.display()
+                )));
             }
         }
     }
@@ -50,10 +53,14 @@ pub fn rigid_icp(a: RigidIcpArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         seed: g.seed,
         ..Default::default()
     };
-    let (mut detection, report) = run_rigid_icp(&cloud.positions, cloud.normals.as_deref(), &ground_truth, &options)
-        .map_err(|e| anyhow::Error::new(e).context(format!("rigid ICP on {}", a.scene.display())))?;
-    detection.scene =
-        a.scene.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_else(|| detection.scene.clone());
+    let (mut detection, report) =
+        run_rigid_icp(&cloud.positions, cloud.normals.as_deref(), &ground_truth, &options)
+            .map_err(|e| anyhow::Error::new(e).context(format!("rigid ICP on {}", a.scene.display())))?;
+    detection.scene = a
+        .scene
+        .file_name()
+        .map(|f| f.to_string_lossy().into_owned())
+        .unwrap_or_else(|| detection.scene.clone());
     write_json(&a.output, &detection)?;
     let eval = evaluate(&detection, &ground_truth, &EvalOptions::default())?;
     if !json_on_stdout(&a.json.json) && !g.quiet {

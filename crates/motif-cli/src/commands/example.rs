@@ -122,7 +122,10 @@ fn run_scene(kind: SceneKind, output: &Path, a: &ExampleArgs, g: &GlobalArgs) ->
         inputs.push(output);
         check_output(gt, &inputs, g.force)?;
         if gt.as_path() == output {
-            return Err(bad_input(format!("{}: the ground truth and the cloud need different files", gt.display())));
+            return Err(bad_input(format!(
+                "{}: the ground truth and the cloud need different files",
+                gt.display()
+            )));
         }
     }
     let t = Instant::now();

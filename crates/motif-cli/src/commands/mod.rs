@@ -24,8 +24,8 @@ use anyhow::Context;
 use motif_core::io::{self, Model, PlyEncoding, StlEncoding, WriteOptions};
 
 use crate::cli::{
-    BaselineCommand, BenchCommand, Cli, Command, EncodingArgs, FeaturesCommand, MrfCommand, PlyEncodingArg, StlEncodingArg,
-    SymmetryCommand,
+    BaselineCommand, BenchCommand, Cli, Command, EncodingArgs, FeaturesCommand, MrfCommand, PlyEncodingArg,
+    StlEncodingArg, SymmetryCommand,
 };
 
 /// Dispatches a parsed command line.

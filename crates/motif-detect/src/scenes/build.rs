@@ -64,11 +64,16 @@ struct Seen {
 }
 
 /// Draws `n` surface samples that some scanner sees (all of them for complete sampling).
-fn visible_samples(sm: &SceneMesh, scanners: &[Point3], n: usize, seed: u64, seen: &mut Seen) -> Result<Vec<Sample>> {
+fn visible_samples(
+    sm: &SceneMesh,
+    scanners: &[Point3],
+    n: usize,
+    seed: u64,
+    seen: &mut Seen,
+) -> Result<Vec<Sample>> {
     let normals: Vec<Point3> = (0..sm.mesh.num_triangles()).map(|f| face_normal(&sm.mesh, f)).collect();
-    let bvh = (!scanners.is_empty()).then(|| {
-        Bvh::new((0..sm.mesh.num_triangles()).map(|f| sm.mesh.corners(f)).collect())
-    });
+    let bvh = (!scanners.is_empty())
+        .then(|| Bvh::new((0..sm.mesh.num_triangles()).map(|f| sm.mesh.corners(f)).collect()));
     let slack = 1e-6 * sm.mesh.diagonal().max(1.0);
     let mut out: Vec<Sample> = Vec::with_capacity(n);
     let mut fraction: f64 = if scanners.is_empty() { 1.0 } else { 0.5 };
@@ -122,7 +127,12 @@ fn visible_samples(sm: &SceneMesh, scanners: &[Point3], n: usize, seed: u64, see
 }
 
 /// Samples the layout into a scene.
-pub(crate) fn build(kind: SceneKind, options: &SceneOptions, s: &SceneSettings, layout: Layout) -> Result<Scene> {
+pub(crate) fn build(
+    kind: SceneKind,
+    options: &SceneOptions,
+    s: &SceneSettings,
+    layout: Layout,
+) -> Result<Scene> {
     let mut sm = SceneMesh { mesh: TriMesh::default(), owner: Vec::new(), outward: Vec::new() };
     sm.push(&layout.background, Owner::Background, true);
     for (k, inst) in layout.instances.iter().enumerate() {
@@ -147,7 +157,11 @@ pub(crate) fn build(kind: SceneKind, options: &SceneOptions, s: &SceneSettings, 
     let mut rng = stream(options.seed, NOISE);
     for (p, n, o) in samples {
         let q = if sigma > 0.0 {
-            [p[0] + sigma * gaussian(&mut rng), p[1] + sigma * gaussian(&mut rng), p[2] + sigma * gaussian(&mut rng)]
+            [
+                p[0] + sigma * gaussian(&mut rng),
+                p[1] + sigma * gaussian(&mut rng),
+                p[2] + sigma * gaussian(&mut rng),
+            ]
         } else {
             p
         };
@@ -205,7 +219,10 @@ pub(crate) fn build(kind: SceneKind, options: &SceneOptions, s: &SceneSettings, 
             None => {
                 classes.push((
                     rigid_inverse(&inst.world_from_local),
-                    DetectedClass { name: Some(layout.templates[inst.class].name.clone()), instances: Vec::new() },
+                    DetectedClass {
+                        name: Some(layout.templates[inst.class].name.clone()),
+                        instances: Vec::new(),
+                    },
                 ));
                 class_slot[inst.class] = Some(classes.len() - 1);
                 classes.len() - 1
@@ -223,8 +240,10 @@ pub(crate) fn build(kind: SceneKind, options: &SceneOptions, s: &SceneSettings, 
             points: Some(std::mem::take(&mut points_of[k])),
         });
     }
-    let ground_truth =
-        DetectionResult { scene: kind.name().to_string(), classes: classes.into_iter().map(|(_, c)| c).collect() };
+    let ground_truth = DetectionResult {
+        scene: kind.name().to_string(),
+        classes: classes.into_iter().map(|(_, c)| c).collect(),
+    };
 
     let count = |code: i64| owner.iter().filter(|&&o| o == code).count();
     let stats = SceneStats {

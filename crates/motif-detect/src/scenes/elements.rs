@@ -122,13 +122,22 @@ fn recess(o: [f64; 4], depth: f64) -> TriMesh {
 }
 
 /// `cylinder_mesh` (about z) turned so its axis is y: `(x, y, z) ↦ (x, z, −y)`, a proper rotation.
-const Z_TO_Y: Mat4 = [[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, -1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
+const Z_TO_Y: Mat4 =
+    [[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, -1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
 /// Turns the z axis into the x axis: `(x, y, z) ↦ (z, y, −x)`, a proper rotation about y.
-const Z_TO_X: Mat4 = [[0.0, 0.0, 1.0, 0.0], [0.0, 1.0, 0.0, 0.0], [-1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
+const Z_TO_X: Mat4 =
+    [[0.0, 0.0, 1.0, 0.0], [0.0, 1.0, 0.0, 0.0], [-1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
 
 /// A closed cylinder of `radius` along `axis` (0 = x, 1 = y, 2 = z) from `a` to `b` on that axis,
 /// centred on `center` in the other two coordinates.
-pub(crate) fn cylinder(axis: usize, center: Point3, radius: f64, a: f64, b: f64, segments: usize) -> CoreResult<TriMesh> {
+pub(crate) fn cylinder(
+    axis: usize,
+    center: Point3,
+    radius: f64,
+    a: f64,
+    b: f64,
+    segments: usize,
+) -> CoreResult<TriMesh> {
     let mut m = cylinder_mesh(radius, a, b, segments, segs(b - a))?;
     match axis {
         0 => m.transform(&Z_TO_X),

@@ -8,7 +8,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::elements::{self, Template, add_front_rect, add_rect, cuboid, cylinder, sphere};
 use super::variation::Variation;
-use super::{Placement, SceneKind, SceneOptions, ScenePart, SceneSettings, Scanning};
+use super::{Placement, Scanning, SceneKind, SceneOptions, ScenePart, SceneSettings};
 use crate::error::{DetectError, Result};
 
 /// Bay width (horizontal pitch of the facade grid), metres.
@@ -150,7 +150,8 @@ fn facade_slots(
                 // The element, grown by the largest variation (scale and part offsets), stays
                 // inside its bay.
                 let b = templates[class].bounds();
-                let half = b.min[0].abs().max(b.max[0]) * (1.0 + s.variation) + 0.1 * s.variation * b.diagonal();
+                let half =
+                    b.min[0].abs().max(b.max[0]) * (1.0 + s.variation) + 0.1 * s.variation * b.diagonal();
                 let room = (0.5 * BAY - half - 0.05).max(0.0);
                 dx = (u * s.jitter * BAY).clamp(-room, room);
                 // Doors stay on their step, on the ground.
@@ -192,7 +193,13 @@ struct Row {
 /// Places rows of free-standing objects: evenly spaced along each row's centre line (regular),
 /// or at random non-overlapping positions in the row's rectangle with random yaw (irregular).
 /// Objects that find no free spot after 400 tries are left out.
-fn ground_slots(rows: &[Row], templates: &[Template], s: &SceneSettings, rng: &mut ChaCha8Rng, discs: &mut Vec<Disc>) -> Vec<Slot> {
+fn ground_slots(
+    rows: &[Row],
+    templates: &[Template],
+    s: &SceneSettings,
+    rng: &mut ChaCha8Rng,
+    discs: &mut Vec<Disc>,
+) -> Vec<Slot> {
     let mut slots = Vec::new();
     for row in rows {
         let r = footprint_radius(&templates[row.class]);
@@ -268,7 +275,14 @@ fn wall_with_holes(w: f64, h: f64, holes: &[[f64; 4]]) -> TriMesh {
 fn ground(x: [f64; 2], z: [f64; 2]) -> TriMesh {
     let mut m = TriMesh::default();
     let n = |l: f64| ((l / 1.0).ceil() as usize).max(1);
-    add_rect(&mut m, [x[0], 0.0, z[0]], [0.0, 0.0, z[1] - z[0]], [x[1] - x[0], 0.0, 0.0], n(z[1] - z[0]), n(x[1] - x[0]));
+    add_rect(
+        &mut m,
+        [x[0], 0.0, z[0]],
+        [0.0, 0.0, z[1] - z[0]],
+        [x[1] - x[0], 0.0, 0.0],
+        n(z[1] - z[0]),
+        n(x[1] - x[0]),
+    );
     m
 }
 
@@ -313,7 +327,8 @@ fn clutter(
                 let (bw, bh, bd) = (range(0.3, 0.9), range(0.3, 0.7), range(0.1, 0.35));
                 let (x, y) = (range(0.2, w - 0.2 - bw), range(0.5, h - 0.3 - bh));
                 let b = Aabb { min: [x, y, 0.0], max: [x + bw, y + bh, bd] };
-                let grown = Aabb { min: [x - 0.1, y - 0.1, -1.0], max: [x + bw + 0.1, y + bh + 0.1, bd + 0.1] };
+                let grown =
+                    Aabb { min: [x - 0.1, y - 0.1, -1.0], max: [x + bw + 0.1, y + bh + 0.1, bd + 0.1] };
                 if instance_boxes.iter().chain(&wall_boxes).any(|o| o.intersection(&grown).is_some()) {
                     continue;
                 }
@@ -396,7 +411,14 @@ pub(crate) fn layout(
                 for (i, t) in user.into_iter().enumerate() {
                     let z = 1.5 + 2.0 * (i % 2) as f64;
                     let class = add(t, &mut templates);
-                    rows.push(Row { class, count: options.part_instances, x: x_row, z: [z - 0.8, z + 0.8], yaw: 0.0, flip: false });
+                    rows.push(Row {
+                        class,
+                        count: options.part_instances,
+                        x: x_row,
+                        z: [z - 0.8, z + 0.8],
+                        yaw: 0.0,
+                        flip: false,
+                    });
                 }
             } else {
                 ground_z = [0.0, 14.0];
@@ -415,13 +437,24 @@ pub(crate) fn layout(
                 rows.push(Row { class: car, count: 4, x: x_wide, z: [11.6, 13.0], yaw: 0.0, flip: true });
                 for t in user {
                     let class = add(t, &mut templates);
-                    rows.push(Row { class, count: options.part_instances, x: x_row, z: [6.0, 7.6], yaw: 0.0, flip: false });
+                    rows.push(Row {
+                        class,
+                        count: options.part_instances,
+                        x: x_row,
+                        z: [6.0, 7.6],
+                        yaw: 0.0,
+                        flip: false,
+                    });
                 }
             }
             slots.extend(ground_slots(&rows, &templates, s, &mut rng, &mut discs));
         }
         SceneKind::Parts => {
-            let user = if user.is_empty() { vec![elements::car()?, elements::bin()?, elements::lamp_post()?] } else { user };
+            let user = if user.is_empty() {
+                vec![elements::car()?, elements::bin()?, elements::lamp_post()?]
+            } else {
+                user
+            };
             let n = options.part_instances;
             // Each class gets a row as wide as its objects need; the ground fits the rows.
             let widths: Vec<f64> = user.iter().map(|t| 2.0 * footprint_radius(t) + 0.8).collect();

@@ -347,8 +347,14 @@ pub struct ScenePart {
 /// Reads a part mesh; errors name the file. The class name is the file stem.
 pub fn load_scene_part(path: &Path) -> Result<ScenePart> {
     let bad = |message: String| DetectError::ScenePart { path: path.to_path_buf(), message };
-    let mesh = motif_core::io::read_mesh(path).map_err(|e| bad(e.to_string()))?;
-    if !(mesh.area() > 0.0) {
+    let mesh = motif_core::io::read_mesh(path).map_err(|e| {
+        // Core errors usually start with the file name already.
+        let text = e.to_string();
+        let prefix = format!("{}: ", path.display());
+        bad(text.strip_prefix(&prefix).map(str::to_string).unwrap_or(text))
+    })?;
+    let area = mesh.area();
+    if area.is_nan() || area <= 0.0 {
         return Err(bad("the mesh has no surface area to sample".into()));
     }
     let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "part".into());
@@ -406,7 +412,11 @@ pub fn generate_scene(kind: SceneKind, options: &SceneOptions) -> Result<Scene> 
 }
 
 /// [`generate_scene`] with the part meshes given in memory ([`SceneOptions::parts`] is ignored).
-pub fn generate_scene_with_parts(kind: SceneKind, options: &SceneOptions, parts: &[ScenePart]) -> Result<Scene> {
+pub fn generate_scene_with_parts(
+    kind: SceneKind,
+    options: &SceneOptions,
+    parts: &[ScenePart],
+) -> Result<Scene> {
     options.validate()?;
     let settings = options.effective_settings();
     let layout = layout::layout(kind, options, &settings, parts)?;

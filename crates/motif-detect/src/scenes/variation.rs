@@ -75,9 +75,9 @@ impl Variation {
     /// The wall opening of the varied template (scaled; the bend and offsets leave it alone), in
     /// the template's frame.
     pub fn opening(&self, template: &Template) -> Option<[f64; 4]> {
-        template.opening.map(|o| {
-            [o[0] * self.scale[0], o[1] * self.scale[1], o[2] * self.scale[0], o[3] * self.scale[1]]
-        })
+        template
+            .opening
+            .map(|o| [o[0] * self.scale[0], o[1] * self.scale[1], o[2] * self.scale[0], o[3] * self.scale[1]])
     }
 }
 
