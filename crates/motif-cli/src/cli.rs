@@ -72,7 +72,10 @@ pub enum Command {
     /// Multi-label MRF problems (alpha-expansion on Boykov–Kolmogorov max-flow).
     #[command(subcommand)]
     Mrf(MrfCommand),
-    /// Write a procedural example shape with known structure.
+    /// Baseline detectors to compare building-block detection with (thesis 5.5.3).
+    #[command(subcommand)]
+    Baseline(BaselineCommand),
+    /// Write a procedural example shape with known structure, or a benchmark scene (scene-*).
     Example(ExampleArgs),
     /// Run everything Motif can do, end to end, on generated examples, and say what happened.
     Demo(DemoArgs),
@@ -481,8 +484,8 @@ pub enum BenchCommand {
     /// Chromium (needs scripts/studio-browser-setup.sh) and prints the median of solve, transfer,
     /// upload + draw.
     Studio(BenchStudioArgs),
-    /// Thesis 5.5: generated scenes at graded difficulty, scored for EM + SC and SC (no EM): mean
-    /// precision, recall and F at τ = 0.125, time per stage.
+    /// Thesis 5.5: generated scenes at graded difficulty, scored for EM + SC, SC (no EM) and the
+    /// supervised rigid-ICP baseline: mean precision, recall and F at τ = 0.125, time per stage.
     Detect(BenchDetectArgs),
 }
 
@@ -501,7 +504,7 @@ pub struct BenchDetectArgs {
     /// one per dataset (0.0012 ≈ 4 cm on the ~33 m generated facades: 64ε spans a window).
     #[arg(long, default_value_t = 0.0012)]
     pub epsilon: f64,
-    /// Skip the rigid-ICP baseline column (not yet part of this benchmark).
+    /// Skip the rigid-ICP baseline (the slowest column).
     #[arg(long)]
     pub no_icp: bool,
     /// Mean PR and stress curves of EM + SC per difficulty (PNG).
@@ -696,4 +699,52 @@ pub struct EvalArgs {
     pub plot: Option<PathBuf>,
     #[command(flatten)]
     pub json: JsonArg,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum BaselineCommand {
+    /// Supervised rigid-ICP sliding window (thesis 5.5.3 "RigidICP"): each ground-truth class's
+    /// first instance is the template, slid over the scene and refined by ICP.
+    RigidIcp(RigidIcpArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct RigidIcpArgs {
+    /// Scene point cloud (PLY with normals: point-to-plane ICP; without: point-to-point).
+    pub scene: PathBuf,
+    /// Ground truth (../shared/formats/detection.md): its classes and first-instance templates.
+    #[arg(long)]
+    pub gt: PathBuf,
+    /// Detection result (JSON, the schema motif eval reads).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Window grid step, in template diagonals.
+    #[arg(long, default_value_t = 0.2)]
+    pub step: f64,
+    /// Minimum score: the smaller of the fractions of template points near the scene and of scene
+    /// points in the box near the template.
+    #[arg(long, default_value_t = 0.5)]
+    pub min_score: f64,
+    /// Inlier distance, in template diagonals.
+    #[arg(long, default_value_t = 0.01)]
+    pub inlier_distance: f64,
+    /// Yaw angles tried for classes that are rotated about the up axis.
+    #[arg(long, default_value_t = 12)]
+    pub rotation_steps: usize,
+    /// Which classes are searched over rotations about the up axis.
+    #[arg(long, value_enum, default_value_t)]
+    pub rotations: RotationsArg,
+    #[command(flatten)]
+    pub json: JsonArg,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum, Default, PartialEq)]
+pub enum RotationsArg {
+    /// Classes whose annotated instances are rotated about the up axis.
+    #[default]
+    Auto,
+    /// None.
+    Never,
+    /// All.
+    Always,
 }

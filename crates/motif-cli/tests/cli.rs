@@ -460,6 +460,140 @@ fn eval_scores_a_detection_against_ground_truth() {
 }
 
 #[test]
+fn example_scenes_write_a_cloud_with_normals_and_ground_truth() {
+    let d = tmp();
+    let names = stdout(&motif(&["example", "--list"], d.path()));
+    for n in ["scene-facade", "scene-street", "scene-parts"] {
+        assert!(names.lines().any(|l| l.trim() == n), "missing {n} in {names}");
+    }
+    let o = motif(
+        &[
+            "example",
+            "scene-facade",
+            "s.ply",
+            "--gt",
+            "s.gt.json",
+            "--difficulty",
+            "hard",
+            "--points",
+            "20000",
+        ],
+        d.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let header = std::fs::read(d.path().join("s.ply")).unwrap();
+    let header = String::from_utf8_lossy(&header[..400]);
+    assert!(header.contains("element vertex 20000") && header.contains("property float nx"), "{header}");
+    let gt: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.path().join("s.gt.json")).unwrap()).unwrap();
+    assert_eq!(gt["scene"], "s.ply");
+    let classes = gt["classes"].as_array().unwrap();
+    assert!(classes.iter().filter(|c| c["instances"].as_array().unwrap().len() >= 5).count() >= 2, "{gt}");
+    // The ground truth against itself: everything found, nothing spurious.
+    let r = json_of(&motif(&["eval", "s.gt.json", "s.gt.json", "--json"], d.path()));
+    assert_eq!(r["f"].as_f64(), Some(1.0), "{r}");
+    // Same seed, same scene; the outputs were written atomically.
+    let o =
+        motif(&["example", "scene-facade", "t.ply", "--difficulty", "hard", "--points", "20000"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        std::fs::read(d.path().join("s.ply")).unwrap(),
+        std::fs::read(d.path().join("t.ply")).unwrap()
+    );
+    for f in files_in(d.path()) {
+        let name = f.file_name().unwrap().to_string_lossy().into_owned();
+        assert!(!name.contains(".tmp") && !name.starts_with('.'), "stray file {name}");
+    }
+}
+
+#[test]
+fn example_scenes_refuse_bad_parts_and_options() {
+    let d = tmp();
+    std::fs::write(d.path().join("broken.obj"), "v 0 0 0\nf 1 2 9\n").unwrap();
+    let o = motif(&["example", "scene-parts", "p.ply", "--parts", "broken.obj"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("broken.obj"), "{}", stderr(&o));
+    assert!(!d.path().join("p.ply").exists());
+    let o = motif(&["example", "scene-parts", "p.ply", "--parts", "nowhere.stl"], d.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("nowhere.stl"), "{}", stderr(&o));
+    // A part is an input: the cloud may not overwrite it.
+    assert!(motif(&["example", "chair", "chair.obj"], d.path()).status.success());
+    let before = std::fs::read(d.path().join("chair.obj")).unwrap();
+    let o =
+        motif(&["example", "scene-parts", "chair.obj", "--parts", "chair.obj", "--points", "5000"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert_eq!(std::fs::read(d.path().join("chair.obj")).unwrap(), before);
+    // With a good part the scene has its class.
+    let o = motif(
+        &["example", "scene-parts", "p.ply", "--parts", "chair.obj", "--gt", "p.json", "--points", "20000"],
+        d.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let gt: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.path().join("p.json")).unwrap()).unwrap();
+    assert_eq!(gt["classes"][0]["name"], "chair", "{gt}");
+    assert_eq!(
+        motif(&["example", "scene-facade", "x.ply", "--points", "10"], d.path()).status.code(),
+        Some(2)
+    );
+    assert_eq!(
+        motif(&["example", "shelf", "x.ply", "--difficulty", "hard"], d.path()).status.code(),
+        Some(2)
+    );
+    assert!(!d.path().join("x.ply").exists());
+}
+
+#[test]
+fn baseline_rigid_icp_finds_the_cars_of_an_easy_street() {
+    let d = tmp();
+    let o = motif(
+        &[
+            "example",
+            "scene-street",
+            "st.ply",
+            "--gt",
+            "st.json",
+            "--difficulty",
+            "easy",
+            "--points",
+            "100000",
+        ],
+        d.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Only the cars (8 rigid copies): a fast run of the baseline.
+    let mut gt: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.path().join("st.json")).unwrap()).unwrap();
+    let cars: Vec<serde_json::Value> =
+        gt["classes"].as_array().unwrap().iter().filter(|c| c["name"] == "car").cloned().collect();
+    assert_eq!(cars.len(), 1);
+    gt["classes"] = serde_json::Value::Array(cars);
+    std::fs::write(d.path().join("cars.json"), serde_json::to_string(&gt).unwrap()).unwrap();
+    let r = json_of(&motif(
+        &["baseline", "rigid-icp", "st.ply", "--gt", "cars.json", "-o", "det.json", "--json"],
+        d.path(),
+    ));
+    assert!(r["f"].as_f64().unwrap() >= 0.9, "{r}");
+    let det: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.path().join("det.json")).unwrap()).unwrap();
+    assert_eq!(det["classes"][0]["name"], "car");
+    let e = json_of(&motif(&["eval", "det.json", "cars.json", "--json"], d.path()));
+    assert_eq!(e["f"], r["f"]);
+    // Never onto an input; bad inputs exit 2 naming the file.
+    let o = motif(&["baseline", "rigid-icp", "st.ply", "--gt", "cars.json", "-o", "cars.json"], d.path());
+    assert_eq!(o.status.code(), Some(2));
+    let o = motif(&["baseline", "rigid-icp", "st.ply", "--gt", "nothing.json", "-o", "x.json"], d.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("nothing.json"), "{}", stderr(&o));
+    let o = motif(
+        &["baseline", "rigid-icp", "st.ply", "--gt", "cars.json", "-o", "x.json", "--min-score", "2"],
+        d.path(),
+    );
+    assert_eq!(o.status.code(), Some(2));
+}
+
+#[test]
 fn detect_names_a_nan_point_and_writes_nothing() {
     let dir = tmp();
     let ply = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n1 0 0\n0 nan 0\n0 0 1\n";

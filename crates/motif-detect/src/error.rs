@@ -31,8 +31,9 @@ pub enum DetectError {
         /// What is wrong and how to fix it.
         problem: String,
     },
-    /// An [`crate::eval::EvalOptions`] field is out of range.
-    #[error("invalid evaluation option `{name}`: {message}")]
+    /// An options field ([`crate::eval::EvalOptions`], [`crate::scenes::SceneOptions`],
+    /// [`crate::rigid_icp::RigidIcpOptions`], ...) is out of range.
+    #[error("invalid option `{name}`: {message}")]
     InvalidOption {
         /// The option's field name.
         name: &'static str,

@@ -12,6 +12,7 @@
 //! - [`eval`]: the evaluation protocol of thesis 5.5.2 (box matching, precision, recall, F, the
 //!   PR curve by class removal and the stress curve over the overlap threshold τ);
 //! - [`plot`]: the PR and stress curves as a PNG (like the thesis's Fig. 5.9);
+//! - [`mod@rigid_icp`]: the supervised rigid-ICP sliding-window baseline of 5.5.3;
 //! - [`scenes`]: benchmark point clouds of facades and streets with ground truth, at graded
 //!   difficulty.
 
@@ -28,6 +29,7 @@ pub mod instances;
 pub mod pipeline;
 pub mod plot;
 pub mod preprocess;
+pub mod rigid_icp;
 pub mod scenes;
 
 pub use detection::{DetectedClass, DetectedInstance, DetectionResult};
@@ -35,6 +37,7 @@ pub use error::{DetectError, Result};
 pub use eval::{EvalOptions, EvalReport, EvalSummary, evaluate, evaluate_many};
 pub use pipeline::{DetectOptions, DetectReport, Detection, Method, detect, detect_mesh};
 pub use plot::{EvalCurves, plot_pr_and_stress};
+pub use rigid_icp::{ClassCompetition, RigidIcpOptions, RigidIcpReport, rigid_icp};
 pub use scenes::{Difficulty, Scene, SceneKind, SceneOptions, generate_scene};
 
 /// The thesis chapter this crate implements, for reports and `--version` output.

@@ -1,6 +1,7 @@
 //! One module per subcommand; each exposes `run(args, &GlobalArgs)`.
 
 mod align;
+mod baseline;
 mod bench;
 mod bench_detect;
 mod convert;
@@ -26,8 +27,8 @@ use anyhow::Context;
 use motif_core::io::{self, Model, PlyEncoding, StlEncoding, WriteOptions};
 
 use crate::cli::{
-    BenchCommand, Cli, Command, EncodingArgs, FeaturesCommand, MrfCommand, PlyEncodingArg, StlEncodingArg,
-    SymmetryCommand,
+    BaselineCommand, BenchCommand, Cli, Command, EncodingArgs, FeaturesCommand, MrfCommand, PlyEncodingArg,
+    StlEncodingArg, SymmetryCommand,
 };
 
 /// Dispatches a parsed command line.
@@ -54,6 +55,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Sparsity(a) => offsets::sparsity(a, g),
         Command::Mrf(MrfCommand::Solve(a)) => mrf::solve(a, g),
         Command::Mrf(MrfCommand::Generate(a)) => mrf::generate(a, g),
+        Command::Baseline(BaselineCommand::RigidIcp(a)) => baseline::rigid_icp(a, g),
         Command::Example(a) => example::run(a, g),
         Command::Demo(a) => demo::run(a, g),
         Command::Studio(a) => studio::run(a, g),

@@ -10,9 +10,9 @@
 //! # Scene kinds
 //! | name | what | classes (easy, default size) |
 //! |---|---|---|
-//! | `scene-facade` | a 20.3 × 17 m facade (7 bays, 5 floors) and a 6 m ground strip | `window_a` 14, `window_b` 14, `window_c` 5, `balcony` 6, `door` 2 |
-//! | `scene-street` | the facade with 4 floors, a 14 m street with parked cars, bins and lamp posts | `window_a` 7, `window_b` 14, `window_c` 5, `balcony` 6, `door` 2, `car` 7, `bin` 6, `lamp_post` 5 |
-//! | `scene-parts` | a 24 × 16 m ground with free-standing parts scattered on it | 6 of each part (`car`, `bin`, `lamp_post` when no `parts` are given) |
+//! | `scene-facade` | a 20.3 × 17 m facade (7 bays of 2.9 m, 5 floors) and a 6 m ground strip | `window_a` 14, `window_b` 14, `window_c` 5, `balcony` 6, `door` 2 |
+//! | `scene-street` | the facade with 4 floors, a 14 m deep street with parked cars (two rows), bins and lamp posts on the pavement | `window_a` 7, `window_b` 14, `window_c` 5, `balcony` 6, `door` 2, `lamp_post` 5, `bin` 6, `car` 8 |
+//! | `scene-parts` | free-standing parts on a ground sized to fit them (one row per class when regular, scattered when irregular) | 6 of each part (`car`, `bin`, `lamp_post` when no `parts` are given) |
 //!
 //! Real meshes given as [`SceneOptions::parts`] become extra free-standing classes (named after
 //! the file stem, 6 instances each, scaled to [`SceneOptions::part_size`]) in every kind; in
@@ -64,14 +64,16 @@ use crate::error::{DetectError, Result};
 
 /// The kinds of benchmark scene.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
 pub enum SceneKind {
     /// `scene-facade`: a facade with three window styles, balconies and doors.
+    #[serde(rename = "scene-facade")]
     Facade,
     /// `scene-street`: a lower facade and a street with cars, bins and lamp posts.
+    #[serde(rename = "scene-street")]
     Street,
     /// `scene-parts`: free-standing parts (the given meshes, else street furniture) scattered on
     /// the ground.
+    #[serde(rename = "scene-parts")]
     Parts,
 }
 
@@ -182,9 +184,10 @@ pub enum Scanning {
     /// Every surface is sampled, hidden or not (a complete, hole-free acquisition).
     Complete,
     /// Only points visible from at least one of `count` virtual scanners (ray casting against
-    /// every triangle of the scene) are kept. The scanners stand in the street, 1.8 m (facade)
-    /// or 2.2 m (street, a car roof) above the ground, 10 m (facade) or 9 m (street) in front of
-    /// the wall, spread evenly along it; for `scene-parts` they stand around the parts. 1 to 16.
+    /// every triangle of the scene) are kept. The scanners stand in a row spread evenly along x:
+    /// 1.8 m high and 10 m in front of the wall for `scene-facade`, 2.2 m high (a car roof) and
+    /// 9 m in front for `scene-street`, 2 m high and 6 m in front of the ground's front edge for
+    /// `scene-parts`. 1 to 16.
     Scanners {
         /// Number of scanner positions, 1 to 16.
         count: usize,
@@ -197,8 +200,9 @@ pub struct SceneSettings {
     /// Regular or irregular placement.
     pub placement: Placement,
     /// Irregular placement: each facade element moves by up to `jitter ×` the bay width (2.9 m)
-    /// horizontally and `jitter × 0.4 ×` the floor height (3.2 m) vertically, uniformly.
-    /// Dimensionless, 0 to 0.15 (beyond that elements of neighbouring bays may touch).
+    /// horizontally (less when it would leave its bay, its largest variation included) and
+    /// `jitter × 0.4 ×` the floor height (3.2 m) vertically, uniformly; balconies move with their
+    /// window, doors stay on the ground. Dimensionless, 0 to 0.15.
     pub jitter: f64,
     /// Irregular placement: the fraction of facade elements (windows and their balconies; never
     /// doors) left out at random, so the grid has gaps. 0 to 0.9.
@@ -347,8 +351,14 @@ pub struct ScenePart {
 /// Reads a part mesh; errors name the file. The class name is the file stem.
 pub fn load_scene_part(path: &Path) -> Result<ScenePart> {
     let bad = |message: String| DetectError::ScenePart { path: path.to_path_buf(), message };
-    let mesh = motif_core::io::read_mesh(path).map_err(|e| bad(e.to_string()))?;
-    if mesh.area().is_nan() || mesh.area() <= 0.0 {
+    let mesh = motif_core::io::read_mesh(path).map_err(|e| {
+        // Core errors usually start with the file name already.
+        let text = e.to_string();
+        let prefix = format!("{}: ", path.display());
+        bad(text.strip_prefix(&prefix).map(str::to_string).unwrap_or(text))
+    })?;
+    let area = mesh.area();
+    if area.is_nan() || area <= 0.0 {
         return Err(bad("the mesh has no surface area to sample".into()));
     }
     let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "part".into());
