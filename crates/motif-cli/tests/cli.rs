@@ -245,8 +245,10 @@ fn align_recovers_a_known_motion_and_demo_runs() {
     assert!(o.status.success(), "{}", stderr(&o));
     let rep: serde_json::Value =
         serde_json::from_slice(&std::fs::read(d.path().join("demo.json")).unwrap()).unwrap();
-    assert_eq!(rep["steps"].as_array().unwrap().len(), 9);
+    assert_eq!(rep["steps"].as_array().unwrap().len(), 10);
     assert!(d.path().join("demo/gear_curvature.ply").exists());
+    assert!(d.path().join("demo/facade_scan.labels.ply").exists());
+    assert!(d.path().join("demo/facade_scan.detection.json").exists());
 }
 
 #[test]
