@@ -30,6 +30,14 @@ fn files_in(dir: &Path) -> Vec<PathBuf> {
     v
 }
 
+/// No temporary or hidden files left behind by the atomic writer.
+fn assert_no_stray_files(dir: &Path) {
+    for f in files_in(dir) {
+        let name = f.file_name().unwrap().to_string_lossy().into_owned();
+        assert!(!name.contains(".tmp") && !name.starts_with('.'), "stray file {name}");
+    }
+}
+
 #[test]
 fn usage_errors_exit_2_and_help_exits_0() {
     let d = tmp();
@@ -112,10 +120,7 @@ fn example_convert_info_round_trip_every_format() {
         assert!((a - b).abs() < 1e-5 * b, "{ext}: diagonal {a} vs {b}");
     }
     // No temporary files left behind by the atomic writer.
-    for f in files_in(d.path()) {
-        let name = f.file_name().unwrap().to_string_lossy().into_owned();
-        assert!(!name.contains(".tmp") && !name.starts_with('.'), "stray file {name}");
-    }
+    assert_no_stray_files(d.path());
 }
 
 #[test]
@@ -502,10 +507,7 @@ fn example_scenes_write_a_cloud_with_normals_and_ground_truth() {
         std::fs::read(d.path().join("s.ply")).unwrap(),
         std::fs::read(d.path().join("t.ply")).unwrap()
     );
-    for f in files_in(d.path()) {
-        let name = f.file_name().unwrap().to_string_lossy().into_owned();
-        assert!(!name.contains(".tmp") && !name.starts_with('.'), "stray file {name}");
-    }
+    assert_no_stray_files(d.path());
 }
 
 #[test]

@@ -203,7 +203,6 @@ pub fn run_em(
     let mut report = EmReport::default();
     let positions: Vec<Point3> = features.iter().map(|f| f.position).collect();
     let all = SpatialHash::new(&positions, o.sigma_s * eps);
-    let peak_hash = SpatialHash::new(&positions, o.peak_radius * eps);
     for it in 0..o.iterations {
         let k = words.len();
         if k < 2 {
@@ -245,8 +244,7 @@ pub fn run_em(
                     .zip(&tscore)
                     .map(|(&c, t)| ((c / max) as f32, t.map_or(0, |t| t.1)))
                     .collect();
-                let members =
-                    find_peaks(&scores, o.min_confidence as f32, o.peak_radius * eps, features, &peak_hash);
+                let members = find_peaks(&scores, o.min_confidence as f32, o.peak_radius * eps, features);
                 let template = median_template(&members, desc).unwrap_or_else(|| words[j].template.clone());
                 Word { template, members }
             })

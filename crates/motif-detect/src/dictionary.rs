@@ -19,7 +19,6 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::grid::SpatialHash;
 use crate::hoc::{DIM, Descriptors, l1};
 use crate::preprocess::Feature;
 
@@ -190,14 +189,12 @@ pub fn build(
     dists.sort_by(f32::total_cmp);
     let unit = dists.get(dists.len() / 2).copied().unwrap_or(1.0) as f64;
     let matcher = Matcher::new(unit, o);
-    let hash =
-        SpatialHash::new(&features.iter().map(|f| f.position).collect::<Vec<_>>(), o.purify_radius * epsilon);
     let words: Vec<Word> = templates
         .into_par_iter()
         .flatten()
         .map(|(_, template)| {
             let scores: Vec<(f32, u8)> = (0..n).map(|f| matcher.best(&template, desc, f)).collect();
-            let members = find_peaks(&scores, o.min_score as f32, o.purify_radius * epsilon, features, &hash);
+            let members = find_peaks(&scores, o.min_score as f32, o.purify_radius * epsilon, features);
             Word { template, members }
         })
         .filter(|w| w.members.len() >= 2)
@@ -208,13 +205,7 @@ pub fn build(
 /// Non-maximum suppression over per-feature `(score, flip)`: features scoring at least `min`,
 /// strongest first, each kept unless a kept feature lies within `radius` (the thesis's sliding-
 /// window purification and EM FindPeak).
-pub fn find_peaks(
-    scores: &[(f32, u8)],
-    min: f32,
-    radius: f64,
-    features: &[Feature],
-    _hash: &SpatialHash,
-) -> Vec<Member> {
+pub fn find_peaks(scores: &[(f32, u8)], min: f32, radius: f64, features: &[Feature]) -> Vec<Member> {
     let mut cand: Vec<usize> =
         (0..scores.len()).filter(|&f| scores[f].0 >= min && scores[f].0 > 0.0).collect();
     cand.sort_by(|&a, &b| scores[b].0.total_cmp(&scores[a].0).then(a.cmp(&b)));

@@ -230,7 +230,7 @@ pub fn detect(
     progress.start("resample, normals, curvature, features", 0);
     let mut popts = o.preprocess.clone();
     popts.seed = o.seed;
-    let pre = preprocess(cloud, &popts, force)?;
+    let mut pre = preprocess(cloud, &popts, force)?;
     progress.finish();
     report.seconds.preprocess = t0.elapsed().as_secs_f64();
     report.epsilon = pre.epsilon;
@@ -259,12 +259,12 @@ pub fn detect(
     }
     let t1 = Instant::now();
     progress.start("HOC descriptors", 0);
-    let mut features = pre.features.clone();
+    // The frames are canonicalised in place by the descriptor; `pre` keeps no second copy.
+    let mut features = std::mem::take(&mut pre.features);
     let desc = compute(&pre, &mut features, &o.hoc, o.seed);
     progress.finish();
     report.seconds.descriptors = t1.elapsed().as_secs_f64();
 
-    let eps = pre.epsilon;
     let mut active: Vec<bool> = vec![true; features.len()];
     let mut classes: Vec<Class> = Vec::new();
     for round in 0..o.mdl_rounds.max(1) {
@@ -315,12 +315,11 @@ pub fn detect(
 
     let t5 = Instant::now();
     progress.start("labels and boxes", 0);
-    let (result, labels) = to_result(cloud, scene, &classes, &pre)?;
+    let (result, labels) = to_result(cloud, scene, &classes)?;
     progress.finish();
     report.seconds.output = t5.elapsed().as_secs_f64();
     report.instances_per_class = classes.iter().map(|c| c.instances.len()).collect();
     report.seconds.total = t0.elapsed().as_secs_f64();
-    let _ = eps;
     Ok(Detection { result, labels, classes, features, report, samples: None })
 }
 
@@ -399,7 +398,6 @@ fn to_result(
     cloud: &PointCloud,
     scene: &str,
     classes: &[Class],
-    pre: &Preprocessed,
 ) -> Result<(DetectionResult, Vec<Option<(u32, u32)>>)> {
     let mut labels: Vec<Option<(u32, u32)>> = vec![None; cloud.len()];
     let tree = if classes.is_empty() { None } else { Some(KdTree::new(&cloud.positions)?) };
@@ -434,7 +432,6 @@ fn to_result(
         }
         out.push(DetectedClass { name: Some(format!("class_{ci}")), instances });
     }
-    let _ = pre;
     if cloud.positions.len() > u32::MAX as usize {
         return Err(DetectError::InvalidInput("more than 2³² points".into()));
     }

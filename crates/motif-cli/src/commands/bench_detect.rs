@@ -5,7 +5,6 @@
 
 use std::time::Instant;
 
-use motif_core::progress::NoProgress;
 use motif_detect::pipeline::Method;
 use motif_detect::preprocess::Epsilon;
 use motif_detect::rigid_icp::{RigidIcpOptions, rigid_icp};
@@ -154,7 +153,6 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             eprintln!("wrote {}", p.display());
         }
     }
-    let _ = NoProgress;
     maybe_json(
         &a.json.json,
         &serde_json::json!({ "rows": rows, "stages": stages, "epsilon": a.epsilon, "points": a.points }),

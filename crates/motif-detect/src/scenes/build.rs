@@ -9,7 +9,6 @@ use rand::Rng;
 use rayon::prelude::*;
 
 use super::bvh::Bvh;
-use super::elements::face_normal;
 use super::layout::{Layout, NOISE, ORDER, OUTLIERS, stream};
 use super::{Scene, SceneKind, SceneOptions, SceneSettings, SceneStats};
 use crate::detection::{DetectedClass, DetectedInstance, DetectionResult};
@@ -71,7 +70,7 @@ fn visible_samples(
     seed: u64,
     seen: &mut Seen,
 ) -> Result<Vec<Sample>> {
-    let normals: Vec<Point3> = (0..sm.mesh.num_triangles()).map(|f| face_normal(&sm.mesh, f)).collect();
+    let normals: Vec<Point3> = sm.mesh.face_normals();
     let bvh = (!scanners.is_empty())
         .then(|| Bvh::new((0..sm.mesh.num_triangles()).map(|f| sm.mesh.corners(f)).collect()));
     let slack = 1e-6 * sm.mesh.diagonal().max(1.0);

@@ -7,7 +7,7 @@
 //! parts stand on the ground `y = 0` with their footprint centred on the origin, the long axis
 //! along x.
 
-use motif_core::geometry::{Aabb, Mat4, Point3, add, cross, scale};
+use motif_core::geometry::{Aabb, Mat4, Point3, add, scale};
 use motif_core::procedural::{box_mesh, cylinder_mesh};
 use motif_core::{Result as CoreResult, TriMesh};
 
@@ -402,17 +402,10 @@ pub(crate) fn from_mesh(name: &str, mesh: &TriMesh, size: f64) -> Option<Templat
     })
 }
 
-/// The unit face normal of triangle `f` (zero for a degenerate triangle).
-pub(crate) fn face_normal(mesh: &TriMesh, f: usize) -> Point3 {
-    let [a, b, c] = mesh.corners(f);
-    let n = cross(motif_core::geometry::sub(b, a), motif_core::geometry::sub(c, a));
-    motif_core::geometry::normalize(n).unwrap_or([0.0; 3])
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use motif_core::geometry::dot;
+    use motif_core::geometry::{cross, dot};
 
     fn signed_volume(m: &TriMesh) -> f64 {
         (0..m.num_triangles())
@@ -447,7 +440,7 @@ mod tests {
             let centre = scale(add(add(a, b), c), 1.0 / 3.0);
             // Every face looks towards the point in front of the opening.
             let to_viewer = motif_core::geometry::sub([0.0, 0.0, 5.0], centre);
-            assert!(dot(face_normal(&r, f), to_viewer) > 0.0, "face {f}");
+            assert!(dot(r.face_normals()[f], to_viewer) > 0.0, "face {f}");
         }
     }
 
