@@ -36,6 +36,7 @@ use std::time::Instant;
 
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
@@ -343,6 +344,26 @@ where
     Ok(total)
 }
 
+/// The binary term of one edge between two graph nodes of a move, computed in parallel and
+/// added to the graph afterwards (the graph itself is built sequentially).
+#[derive(Debug, Clone, Copy, Default)]
+struct EdgeTerm<C> {
+    /// Graph nodes of the edge's ends (`vs` is the edge's first site); `u32::MAX` when the slot
+    /// holds no term (the edge was visited from its other end, or leads to a fixed site).
+    vs: u32,
+    vt: u32,
+    /// Arc capacities s→t and t→s.
+    cap: C,
+    rev_cap: C,
+    /// Unary parts for `vs` and `vt`.
+    ds: C,
+    dt: C,
+}
+
+/// Sites per parallel chunk when a move's terms are computed (below about two chunks' worth of
+/// variables the move is built on one thread: rayon's fork costs more than it saves).
+const TERM_CHUNK: usize = 256;
+
 /// What one expansion move did.
 struct MoveOutcome<C> {
     /// The (clamped) energy after the move, when it lowered the energy.
@@ -369,6 +390,9 @@ pub struct AlphaExpansion<C: Capacity> {
     /// Incident edges of each site: `incident[incident_start[p]..incident_start[p + 1]]`.
     incident_start: Vec<u32>,
     incident: Vec<u32>,
+    /// One slot per entry of `incident`: the move's binary term of that edge when it joins two
+    /// graph nodes and is stored at its first site.
+    terms: Vec<EdgeTerm<C>>,
 }
 
 const FIXED: u32 = u32::MAX;
@@ -385,6 +409,7 @@ impl<C: Capacity> AlphaExpansion<C> {
             is_switched: Vec::new(),
             incident_start: Vec::new(),
             incident: Vec::new(),
+            terms: Vec::new(),
         }
     }
 
@@ -400,8 +425,8 @@ impl<C: Capacity> AlphaExpansion<C> {
         options: &AlphaExpansionOptions,
     ) -> Result<AlphaExpansionResult<C>>
     where
-        D: Fn(usize, usize) -> C,
-        V: Fn(usize, usize, usize, usize) -> C,
+        D: Fn(usize, usize) -> C + Sync,
+        V: Fn(usize, usize, usize, usize) -> C + Sync,
     {
         let start = Instant::now();
         energy.validate()?;
@@ -532,8 +557,8 @@ impl<C: Capacity> AlphaExpansion<C> {
         hard: C,
     ) -> Result<MoveOutcome<C>>
     where
-        D: Fn(usize, usize) -> C,
-        V: Fn(usize, usize, usize, usize) -> C,
+        D: Fn(usize, usize) -> C + Sync,
+        V: Fn(usize, usize, usize, usize) -> C + Sync,
     {
         let a = alpha as usize;
         let n = energy.num_sites;
@@ -565,65 +590,22 @@ impl<C: Capacity> AlphaExpansion<C> {
         if num_vars == 0 {
             return Ok(MoveOutcome { accepted: None, truncated: 0 });
         }
+        // The binary terms of the move: per site chunk in parallel (each chunk writes its own
+        // sites' `tdelta` and `terms` slots), then added to the graph in site order.
+        let truncated = self.compute_terms(energy, labels, alpha, hard)?;
         self.graph.reset(num_vars);
-        let mut truncated = 0;
         for v in 0..num_vars {
             let p = self.site_of[v] as usize;
             for i in self.incident_start[p] as usize..self.incident_start[p + 1] as usize {
-                let k = self.incident[i] as usize;
-                let [s, t] = energy.edges[k];
-                let (s, t) = (s as usize, t as usize);
-                let other = if s == p { t } else { s };
-                let vo = self.var_of[other];
-                let (ls, lt) = (labels[s] as usize, labels[t] as usize);
-                if vo == FIXED {
-                    // The other end keeps its label: a unary term of p.
-                    let (keep, switch) = if s == p {
-                        (
-                            energy.pairwise_clamped(k, s, t, ls, lt, hard)?,
-                            energy.pairwise_clamped(k, s, t, a, lt, hard)?,
-                        )
-                    } else {
-                        (
-                            energy.pairwise_clamped(k, s, t, ls, lt, hard)?,
-                            energy.pairwise_clamped(k, s, t, ls, a, hard)?,
-                        )
-                    };
-                    self.tdelta[v] += switch - keep;
+                let t = self.terms[i];
+                if t.vs == u32::MAX {
                     continue;
                 }
-                if other < p {
-                    continue; // visited from the other end
-                }
-                let (vs, vt) = if s == p { (v, vo as usize) } else { (vo as usize, v) };
-                // E(y_s, y_t), y = 1 meaning "switch to α": A = E(0,0), B = E(0,1),
-                // C = E(1,0), D = E(1,1). With K = B + C − A − D ≥ 0 split into arcs s→t (cut
-                // when y_s = 0, y_t = 1) of capacity K − e and t→s of capacity e:
-                // E = A + (C − A − e) y_s + (D − C + e) y_t + cuts. Any e ∈ [0, K] is exact;
-                // e = clamp(C − A, 0, K) zeroes one unary part, so a term that only penalises
-                // disagreement (A = D = 0, B = C) costs arcs both ways and no terminal flow (the
-                // one-sided split would route K through the terminals).
-                let ea = energy.pairwise_clamped(k, s, t, ls, lt, hard)?;
-                let mut eb = energy.pairwise_clamped(k, s, t, ls, a, hard)?;
-                let ec = energy.pairwise_clamped(k, s, t, a, lt, hard)?;
-                let ed = energy.pairwise_clamped(k, s, t, a, a, hard)?;
-                if ea + ed > eb + ec {
-                    // Not submodular: raise B to A + D − C (an upper bound, exact at the
-                    // current labelling).
-                    truncated += 1;
-                    eb = ea + ed - ec;
-                }
-                let k_total = eb + ec - ea - ed;
-                let mut e = ec - ea;
-                if e < C::ZERO {
-                    e = C::ZERO;
-                } else if e > k_total {
-                    e = k_total;
-                }
-                self.tdelta[vs] += ec - ea - e;
-                self.tdelta[vt] += ed - ec + e;
-                if k_total > C::ZERO {
-                    self.graph.add_edge(vs, vt, k_total - e, e);
+                let (vs, vt) = (t.vs as usize, t.vt as usize);
+                self.tdelta[vs] += t.ds;
+                self.tdelta[vt] += t.dt;
+                if t.cap > C::ZERO || t.rev_cap > C::ZERO {
+                    self.graph.add_edge(vs, vt, t.cap, t.rev_cap);
                 }
             }
         }
@@ -665,6 +647,122 @@ impl<C: Capacity> AlphaExpansion<C> {
             labels[p as usize] = alpha;
         }
         Ok(MoveOutcome { accepted: Some(new_energy), truncated })
+    }
+
+    /// Fills `self.terms` (and adds the fixed-neighbour parts to `self.tdelta`) for an
+    /// α-expansion move whose graph nodes are `self.site_of` / `self.var_of`. Returns the number
+    /// of truncated (non-submodular) terms.
+    ///
+    /// E(y_s, y_t), y = 1 meaning "switch to α": A = E(0,0), B = E(0,1), C = E(1,0), D = E(1,1).
+    /// With K = B + C − A − D ≥ 0 split into arcs s→t (cut when y_s = 0, y_t = 1) of capacity
+    /// K − e and t→s of capacity e: E = A + (C − A − e) y_s + (D − C + e) y_t + cuts. Any
+    /// e ∈ [0, K] is exact; e = clamp(C − A, 0, K) zeroes one unary part, so a term that only
+    /// penalises disagreement (A = D = 0, B = C) costs arcs both ways and no terminal flow (the
+    /// one-sided split would route K through the terminals).
+    fn compute_terms<D, V>(
+        &mut self,
+        energy: &MrfEnergy<'_, C, D, V>,
+        labels: &[u32],
+        alpha: u32,
+        hard: C,
+    ) -> Result<usize>
+    where
+        D: Fn(usize, usize) -> C + Sync,
+        V: Fn(usize, usize, usize, usize) -> C + Sync,
+    {
+        let a = alpha as usize;
+        let n = energy.num_sites;
+        self.terms.clear();
+        self.terms.resize(self.incident.len(), EdgeTerm { vs: u32::MAX, ..Default::default() });
+        let var_of = &self.var_of;
+        let incident = &self.incident;
+        let incident_start = &self.incident_start;
+        // One chunk of sites: its variables are contiguous (numbered in site order), and so are
+        // its `terms` slots.
+        let chunk = |p0: usize, terms: &mut [EdgeTerm<C>], tdelta: &mut [C]| -> Result<usize> {
+            let base = incident_start[p0] as usize;
+            let p1 = (p0 + TERM_CHUNK).min(n);
+            let v0 = (p0..p1).map(|p| var_of[p]).find(|&v| v != FIXED).unwrap_or(0) as usize;
+            let mut truncated = 0;
+            for p in p0..p1 {
+                let v = var_of[p];
+                if v == FIXED {
+                    continue;
+                }
+                let v = v as usize;
+                for i in incident_start[p] as usize..incident_start[p + 1] as usize {
+                    let k = incident[i] as usize;
+                    let [s, t] = energy.edges[k];
+                    let (s, t) = (s as usize, t as usize);
+                    let other = if s == p { t } else { s };
+                    let vo = var_of[other];
+                    let (ls, lt) = (labels[s] as usize, labels[t] as usize);
+                    if vo == FIXED {
+                        // The other end keeps its label: a unary term of p.
+                        let keep = energy.pairwise_clamped(k, s, t, ls, lt, hard)?;
+                        let switch = if s == p {
+                            energy.pairwise_clamped(k, s, t, a, lt, hard)?
+                        } else {
+                            energy.pairwise_clamped(k, s, t, ls, a, hard)?
+                        };
+                        tdelta[v - v0] += switch - keep;
+                        continue;
+                    }
+                    if other < p {
+                        continue; // stored at the other end
+                    }
+                    let (vs, vt) = if s == p { (v, vo as usize) } else { (vo as usize, v) };
+                    let ea = energy.pairwise_clamped(k, s, t, ls, lt, hard)?;
+                    let mut eb = energy.pairwise_clamped(k, s, t, ls, a, hard)?;
+                    let ec = energy.pairwise_clamped(k, s, t, a, lt, hard)?;
+                    let ed = energy.pairwise_clamped(k, s, t, a, a, hard)?;
+                    if ea + ed > eb + ec {
+                        // Not submodular: raise B to A + D − C (an upper bound, exact at the
+                        // current labelling).
+                        truncated += 1;
+                        eb = ea + ed - ec;
+                    }
+                    let k_total = eb + ec - ea - ed;
+                    let mut e = ec - ea;
+                    if e < C::ZERO {
+                        e = C::ZERO;
+                    } else if e > k_total {
+                        e = k_total;
+                    }
+                    let (cap, rev_cap) =
+                        if k_total > C::ZERO { (k_total - e, e) } else { (C::ZERO, C::ZERO) };
+                    terms[i - base] = EdgeTerm {
+                        vs: vs as u32,
+                        vt: vt as u32,
+                        cap,
+                        rev_cap,
+                        ds: ec - ea - e,
+                        dt: ed - ec + e,
+                    };
+                }
+            }
+            Ok(truncated)
+        };
+        if self.site_of.len() < 2 * TERM_CHUNK {
+            return chunk_all(n, &mut self.terms, &mut self.tdelta, incident_start, var_of, &chunk);
+        }
+        // Split `terms` and `tdelta` at the chunk boundaries.
+        let mut pieces = Vec::with_capacity(n.div_ceil(TERM_CHUNK));
+        let (mut terms, mut tdelta): (&mut [EdgeTerm<C>], &mut [C]) = (&mut self.terms, &mut self.tdelta);
+        let mut vars_before = 0usize;
+        for p0 in (0..n).step_by(TERM_CHUNK) {
+            let p1 = (p0 + TERM_CHUNK).min(n);
+            let edges_here = (incident_start[p1] - incident_start[p0]) as usize;
+            let vars_here = (p0..p1).filter(|&p| var_of[p] != FIXED).count();
+            let (t_here, t_rest) = std::mem::take(&mut terms).split_at_mut(edges_here);
+            let (d_here, d_rest) = std::mem::take(&mut tdelta).split_at_mut(vars_here);
+            terms = t_rest;
+            tdelta = d_rest;
+            vars_before += vars_here;
+            pieces.push((p0, t_here, d_here));
+        }
+        debug_assert_eq!(vars_before, self.site_of.len());
+        pieces.into_par_iter().map(|(p0, t, d)| chunk(p0, t, d)).try_reduce(|| 0, |x, y| Ok(x + y))
     }
 
     /// E(after) − E(before) of switching `self.switched` to `alpha`, summed over the terms that
@@ -713,6 +811,27 @@ impl<C: Capacity> AlphaExpansion<C> {
     }
 }
 
+/// Runs a move's term `chunk` over every site chunk in turn, on the calling thread.
+fn chunk_all<C: Capacity>(
+    n: usize,
+    terms: &mut [EdgeTerm<C>],
+    tdelta: &mut [C],
+    incident_start: &[u32],
+    var_of: &[u32],
+    chunk: &impl Fn(usize, &mut [EdgeTerm<C>], &mut [C]) -> Result<usize>,
+) -> Result<usize> {
+    let mut truncated = 0;
+    let (mut e0, mut v0) = (0usize, 0usize);
+    for p0 in (0..n).step_by(TERM_CHUNK) {
+        let p1 = (p0 + TERM_CHUNK).min(n);
+        let e1 = incident_start[p1] as usize;
+        let v1 = v0 + (p0..p1).filter(|&p| var_of[p] != FIXED).count();
+        truncated += chunk(p0, &mut terms[e0..e1], &mut tdelta[v0..v1])?;
+        (e0, v0) = (e1, v1);
+    }
+    Ok(truncated)
+}
+
 /// Whether `current + flow − sink_total` gives the move's energy accurately: always for integers;
 /// for floats when the flow and sink capacities are at most 1000 times the energy, so that the
 /// flow's rounding (about one ulp per augmentation) stays far below the acceptance tolerance of
@@ -759,8 +878,8 @@ pub fn alpha_expansion<C, D, V>(
 ) -> Result<AlphaExpansionResult<C>>
 where
     C: Capacity,
-    D: Fn(usize, usize) -> C,
-    V: Fn(usize, usize, usize, usize) -> C,
+    D: Fn(usize, usize) -> C + Sync,
+    V: Fn(usize, usize, usize, usize) -> C + Sync,
 {
     AlphaExpansion::new().solve(energy, init, options)
 }

@@ -47,7 +47,7 @@ use crate::alpha_expansion::{AlphaExpansion, AlphaExpansionOptions, AlphaExpansi
 
 use super::BoundaryMode;
 use super::error::RetargetResult;
-use super::voxels::{VoxelDescriptors, VoxelGrid, hausdorff};
+use super::voxels::{VoxelDescriptors, VoxelGrid, hausdorff_with_norms, squared_norms};
 
 /// The offset labels of eq. 4.2 for given steps.
 #[derive(Debug, Clone, PartialEq)]
@@ -154,9 +154,15 @@ fn distance_table(
     }
     missing.sort_unstable();
     missing.dedup();
+    // Each voxel takes part in many pairs: its rows' norms are computed once.
+    let norms = if missing.is_empty() { Vec::new() } else { squared_norms(&descriptors.rows) };
+    let norms_of = |v: usize| &norms[descriptors.start[v] as usize..descriptors.start[v + 1] as usize];
     let computed: Vec<f64> = missing
         .par_iter()
-        .map(|&(s, t)| hausdorff(descriptors.of(s as usize), descriptors.of(t as usize)))
+        .map(|&(s, t)| {
+            let (s, t) = (s as usize, t as usize);
+            hausdorff_with_norms(descriptors.of(s), norms_of(s), descriptors.of(t), norms_of(t))
+        })
         .collect();
     for (k, d) in missing.iter().zip(&computed) {
         cache.insert(*k, *d);
