@@ -487,6 +487,22 @@ pub enum BenchCommand {
     /// Thesis 5.5: generated scenes at graded difficulty, scored for EM + SC, SC (no EM) and the
     /// supervised rigid-ICP baseline: mean precision, recall and F at τ = 0.125, time per stage.
     Detect(BenchDetectArgs),
+    /// Thesis Fig. 4.8: retargeting with the detected offsets vs the dense MRF (nodes, labels,
+    /// graph cut and step times, ratios), the interactive size (~1,000 nodes, 30 labels) and the
+    /// alpha-expansion solver on mrf_grid_v1 problems next to GCO's times; medians.
+    Retarget(BenchRetargetArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct BenchRetargetArgs {
+    /// Runs per figure (medians are reported).
+    #[arg(long, default_value_t = 5)]
+    pub repeats: usize,
+    /// Also the 30^3 grids with 64 labels (about a minute).
+    #[arg(long)]
+    pub large: bool,
+    #[command(flatten)]
+    pub json: JsonArg,
 }
 
 #[derive(Debug, Args)]

@@ -4,6 +4,7 @@ mod align;
 mod baseline;
 mod bench;
 mod bench_detect;
+mod bench_retarget;
 mod convert;
 mod curvature;
 mod deform;
@@ -47,6 +48,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Deform(a) => deform::run(a, g),
         Command::Bench(BenchCommand::Deform(a)) => bench::deform(a, g),
         Command::Bench(BenchCommand::Detect(a)) => bench_detect::run(a, g),
+        Command::Bench(BenchCommand::Retarget(a)) => bench_retarget::run(a, g),
         Command::Bench(BenchCommand::Studio(a)) => bench::studio(a, g),
         Command::Retarget(a) => retarget::run(a, g),
         Command::Offsets(a) => offsets::offsets(a, g),

@@ -86,7 +86,7 @@ pub struct Prober<'a> {
     /// Moving cloud of the coarse ICP iterations and of the overlap measure: the feature samples
     /// (at most [`MAX_COARSE`]).
     coarse: Vec<usize>,
-    /// The salient feature samples (see [`SALIENT_ANGLE_DEGREES`]): the points of the contrast.
+    /// The salient surface samples of the moving cloud (see [`SALIENT_ANGLE_DEGREES`]): the points of the contrast.
     salient: Vec<usize>,
     gate: f64,
     tolerance: f64,
@@ -106,14 +106,18 @@ impl<'a> Prober<'a> {
         let tree = KdTree::new(&features.dense[nv..]).ok()?;
         // Surface samples come in the random order Poisson-disc elimination accepted them, so a
         // prefix is a spatially even random subset.
-        let moving = (nv..features.dense.len()).take(max_points.max(1)).collect();
+        let moving: Vec<usize> = (nv..features.dense.len()).take(max_points.max(1)).collect();
         // Feature samples are in Poisson-disc acceptance order (random): a prefix is an even subset.
         let coarse: Vec<usize> = features.uniform.iter().copied().take(MAX_COARSE).collect();
-        // Salient feature samples: the normals within a few dense spacings turn by more than
-        // SALIENT_ANGLE (an edge, a corner, a curved patch), unlike the inside of a wall.
+        // Salient surface samples: the normals within a few dense spacings turn by more than
+        // SALIENT_ANGLE (an edge, a corner, a curved patch), unlike the inside of a wall. Taken
+        // from the moving cloud (the dense samples, up to `max_points`) rather than the sparser
+        // feature samples: the contrast is a difference of two shares of this set, and with the
+        // few hundred salient feature samples of a facade its sampling noise (±0.05 between
+        // seeds) straddled the verdict's threshold.
         let r = SALIENT_RADIUS_SPACINGS * dense_spacing;
         let cos_max = SALIENT_ANGLE_DEGREES.to_radians().cos();
-        let salient: Vec<usize> = coarse
+        let salient: Vec<usize> = moving
             .par_iter()
             .copied()
             .filter(|&i| {

@@ -1,0 +1,307 @@
+//! `motif bench retarget`: thesis Fig. 4.8 (retargeting with the detected offsets against the
+//! dense MRF of 4.5) on the generated grid models, the interactive size of 4.4 (~1,000 nodes and
+//! 30 labels), and the alpha-expansion solver on `mrf_grid_v1` problems next to GCO's times.
+//!
+//! Every figure is a median over `--repeats` runs. The retargeting step is timed as the pipeline
+//! runs it: a session built from the offset detection's features (thesis 4.2.2 reuses them for
+//! eq. 4.4), then one solve and the stitching. The offset analysis, shared by both methods, is
+//! reported in its own column and added for the one-shot ratio.
+
+use std::time::Instant;
+
+use motif_core::TriMesh;
+use motif_core::procedural::{ShelfOptions, generate, shelf};
+use motif_core::progress::NoProgress;
+use motif_retarget::alpha_expansion::AlphaExpansionOptions;
+use motif_retarget::offsets::{OffsetOptions, analyze_features, prepare_features};
+use motif_retarget::retarget::{RetargetMethod, RetargetOptions, RetargetSession, orient_offsets};
+use motif_retarget::{Connectivity, generate_grid};
+use serde::Serialize;
+
+use crate::cli::{BenchRetargetArgs, GlobalArgs};
+use crate::output::{bad_input, maybe_json};
+
+/// One model of the Fig. 4.8 table.
+#[derive(Debug, Serialize)]
+struct ModelRow {
+    model: String,
+    vertices: usize,
+    steps: [i32; 3],
+    principal_offsets: usize,
+    analysis_ms: f64,
+    offsets: MethodFigures,
+    dense: MethodFigures,
+    /// Dense graph cut / offsets graph cut.
+    graph_cut_ratio: f64,
+    /// Dense retargeting step / offsets retargeting step (features reused).
+    retarget_ratio: f64,
+    /// (analysis + dense step) / (analysis + offsets step).
+    one_shot_ratio: f64,
+}
+
+#[derive(Debug, Serialize)]
+struct MethodFigures {
+    nodes: usize,
+    labels: usize,
+    energy: f64,
+    graph_cut_ms: f64,
+    retarget_ms: f64,
+}
+
+#[derive(Debug, Serialize)]
+struct InteractiveRow {
+    model: String,
+    steps: [i32; 3],
+    nodes: usize,
+    labels: usize,
+    edges: usize,
+    moves: usize,
+    graph_cut_ms: f64,
+    solve_ms: f64,
+}
+
+#[derive(Debug, Serialize)]
+struct GridRow {
+    problem: String,
+    energy: i64,
+    cycles: usize,
+    solve_ms: f64,
+    gco_ms: f64,
+    ratio_to_gco: f64,
+}
+
+#[derive(Debug, Serialize)]
+struct Report {
+    repeats: usize,
+    threads: usize,
+    models: Vec<ModelRow>,
+    interactive: Vec<InteractiveRow>,
+    grids: Vec<GridRow>,
+    thesis: &'static str,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+/// GCO's times on this machine's kind for the same generator (the figures).
+const GCO_MS: [([usize; 3], usize, Connectivity, f64); 6] = [
+    ([10, 10, 10], 8, Connectivity::Six, 11.7),
+    ([10, 10, 10], 8, Connectivity::TwentySix, 61.0),
+    ([20, 20, 20], 30, Connectivity::Six, 469.0),
+    ([20, 20, 20], 30, Connectivity::TwentySix, 4_700.0),
+    ([30, 30, 30], 64, Connectivity::Six, 3_100.0),
+    ([30, 30, 30], 64, Connectivity::TwentySix, 51_000.0),
+];
+
+pub fn run(a: BenchRetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    if a.repeats == 0 {
+        return Err(bad_input("--repeats must be at least 1"));
+    }
+    let say = |s: String| {
+        if !g.quiet {
+            eprintln!("{s}");
+        }
+    };
+    let mut report = Report {
+        repeats: a.repeats,
+        threads: rayon::current_num_threads(),
+        models: Vec::new(),
+        interactive: Vec::new(),
+        grids: Vec::new(),
+        thesis: "Fig. 4.8: with offsets 32-810 nodes, 3-9 labels, 8-72 ms of graph cut; dense 924-7,429 nodes, 5-54 labels, 0.08-5.2 s",
+    };
+
+    // Fig. 4.8 on the generated models.
+    let offset_options = OffsetOptions { seed: g.seed, ..Default::default() };
+    for (name, steps) in
+        [("shelf", [2, 2, 0]), ("shelf_sheared", [1, 1, 0]), ("facade", [1, 1, 0]), ("fence", [2, 0, 0])]
+    {
+        say(format!("retargeting {name} by {steps:?} ..."));
+        let mesh = generate(name, g.seed)?.mesh;
+        let mut analysis_ms = Vec::new();
+        let mut analysed = None;
+        for _ in 0..a.repeats {
+            let t = Instant::now();
+            let features = prepare_features(&mesh, &offset_options, &NoProgress)?;
+            let analysis = analyze_features(&features, &offset_options, &NoProgress)?;
+            analysis_ms.push(ms(t));
+            analysed = Some((features, analysis));
+        }
+        let Some((features, analysis)) = analysed else { unreachable!("repeats >= 1") };
+        let principal =
+            orient_offsets(&analysis.principal.iter().map(|p| p.offset_model).collect::<Vec<_>>());
+        let figures = |method| -> anyhow::Result<MethodFigures> {
+            let options = RetargetOptions { method, seed: g.seed, ..Default::default() };
+            let (mut cut, mut step, mut last) = (Vec::new(), Vec::new(), None);
+            for _ in 0..a.repeats {
+                let t = Instant::now();
+                let r = RetargetSession::with_features(&mesh, &features, &principal, &options, &NoProgress)?
+                    .retarget(steps, &NoProgress)?;
+                step.push(ms(t));
+                cut.push(r.report.graph_cut_ms);
+                last = Some(r.report);
+            }
+            let Some(r) = last else { unreachable!("repeats >= 1") };
+            Ok(MethodFigures {
+                nodes: r.nodes,
+                labels: r.labels,
+                energy: r.energy,
+                graph_cut_ms: median(cut),
+                retarget_ms: median(step),
+            })
+        };
+        let offsets = figures(RetargetMethod::Offsets)?;
+        let dense = figures(RetargetMethod::Dense)?;
+        let analysis_ms = median(analysis_ms);
+        report.models.push(ModelRow {
+            model: name.to_string(),
+            vertices: mesh.num_vertices(),
+            steps,
+            principal_offsets: principal.len(),
+            analysis_ms,
+            graph_cut_ratio: dense.graph_cut_ms / offsets.graph_cut_ms.max(1e-6),
+            retarget_ratio: dense.retarget_ms / offsets.retarget_ms.max(1e-6),
+            one_shot_ratio: (analysis_ms + dense.retarget_ms) / (analysis_ms + offsets.retarget_ms),
+            offsets,
+            dense,
+        });
+    }
+
+    // The interactive size of 4.4: a 30 × 20-cell shelf grown by +5, +4 (≈ 900 nodes, 30 labels);
+    // the session is prepared once, as while a user drags a size slider.
+    {
+        let steps = [5, 4, 0];
+        say(format!("interactive: shelf 30x20 by {steps:?} ..."));
+        let ex = shelf(&ShelfOptions { cells: [30, 20], ..Default::default() })?;
+        let mut session = interactive_session(&ex.mesh, &ex.structure.cell_pitch, g.seed)?;
+        let _ = session.retarget(steps, &NoProgress)?; // warm the distance cache
+        let (mut cut, mut solve, mut last) = (Vec::new(), Vec::new(), None);
+        for _ in 0..a.repeats.max(5) {
+            let r = session.retarget(steps, &NoProgress)?;
+            cut.push(r.report.graph_cut_ms);
+            solve.push(r.report.solve_ms);
+            last = Some(r.report);
+        }
+        let Some(r) = last else { unreachable!("at least 5 repeats") };
+        report.interactive.push(InteractiveRow {
+            model: "shelf 30x20 cells".into(),
+            steps,
+            nodes: r.nodes,
+            labels: r.labels,
+            edges: r.edges,
+            moves: r.moves,
+            graph_cut_ms: median(cut),
+            solve_ms: median(solve),
+        });
+    }
+
+    // The solver on mrf_grid_v1 problems (generator seed 1, argmin start, as GCO was run).
+    for (dims, labels, conn, gco_ms) in GCO_MS {
+        if dims[0] == 30 && !a.large {
+            continue;
+        }
+        let name = format!("{}^3, {} labels, {}-conn.", dims[0], labels, conn.number());
+        say(format!("grid {name} ..."));
+        let problem = generate_grid(dims, labels, conn, 1);
+        let repeats = if dims[0] >= 20 { a.repeats.min(3) } else { a.repeats.max(5) };
+        let (mut times, mut last) = (Vec::new(), None);
+        for _ in 0..repeats {
+            let s = problem.solve(&AlphaExpansionOptions::default())?;
+            times.push(s.solve_ms);
+            last = Some(s);
+        }
+        let Some(s) = last else { unreachable!("at least one repeat") };
+        let solve_ms = median(times);
+        report.grids.push(GridRow {
+            problem: name,
+            energy: s.energy,
+            cycles: s.cycles,
+            solve_ms,
+            gco_ms,
+            ratio_to_gco: solve_ms / gco_ms,
+        });
+    }
+
+    if !crate::output::json_on_stdout(&a.json.json) {
+        print_tables(&report);
+    }
+    maybe_json(&a.json.json, &report)
+}
+
+fn interactive_session(mesh: &TriMesh, pitch: &[[f64; 3]], seed: u64) -> anyhow::Result<RetargetSession> {
+    let options = RetargetOptions { method: RetargetMethod::Offsets, seed, ..Default::default() };
+    Ok(RetargetSession::new(mesh, pitch, &options, &NoProgress)?)
+}
+
+fn print_tables(r: &Report) {
+    println!(
+        "Retargeting, offsets vs dense (thesis Fig. 4.8; medians of {} runs, {} threads)",
+        r.repeats, r.threads
+    );
+    println!(
+        "{:<14} {:>7} {:>9} | {:>5} {:>6} {:>9} {:>9} | {:>5} {:>6} {:>9} {:>9} | {:>8} {:>8} {:>8}",
+        "model",
+        "verts",
+        "analysis",
+        "nodes",
+        "labels",
+        "cut ms",
+        "step ms",
+        "nodes",
+        "labels",
+        "cut ms",
+        "step ms",
+        "cut x",
+        "step x",
+        "1-shot x"
+    );
+    println!("{:<32} | {:^33} | {:^33} |", "", "offsets", "dense (0.1)");
+    for m in &r.models {
+        println!(
+            "{:<14} {:>7} {:>9.1} | {:>5} {:>6} {:>9.2} {:>9.1} | {:>5} {:>6} {:>9.1} {:>9.1} | {:>8.0} {:>8.1} {:>8.1}",
+            m.model,
+            m.vertices,
+            m.analysis_ms,
+            m.offsets.nodes,
+            m.offsets.labels,
+            m.offsets.graph_cut_ms,
+            m.offsets.retarget_ms,
+            m.dense.nodes,
+            m.dense.labels,
+            m.dense.graph_cut_ms,
+            m.dense.retarget_ms,
+            m.graph_cut_ratio,
+            m.retarget_ratio,
+            m.one_shot_ratio
+        );
+    }
+    println!("thesis {}", r.thesis);
+    println!();
+    println!("Interactive size (thesis 4.4: ~1,000 nodes, 30 labels; target: graph cut < 20 ms)");
+    for i in &r.interactive {
+        println!(
+            "{} {:?}: {} nodes, {} labels, {} edges, {} moves: graph cut {:.1} ms, solve {:.1} ms",
+            i.model, i.steps, i.nodes, i.labels, i.edges, i.moves, i.graph_cut_ms, i.solve_ms
+        );
+    }
+    if !r.grids.is_empty() {
+        println!();
+        println!("Alpha-expansion on mrf_grid_v1 (seed 1, argmin start) next to GCO's times");
+        println!(
+            "{:<26} {:>10} {:>7} {:>10} {:>10} {:>8}",
+            "problem", "energy", "cycles", "ms", "GCO ms", "ratio"
+        );
+        for gr in &r.grids {
+            println!(
+                "{:<26} {:>10} {:>7} {:>10.1} {:>10.1} {:>8.2}",
+                gr.problem, gr.energy, gr.cycles, gr.solve_ms, gr.gco_ms, gr.ratio_to_gco
+            );
+        }
+    }
+}
