@@ -501,6 +501,9 @@ pub struct BenchRetargetArgs {
     /// Also the 30^3 grids with 64 labels (about a minute).
     #[arg(long)]
     pub large: bool,
+    /// Skip the mrf_grid_v1 solver table.
+    #[arg(long, conflicts_with = "large")]
+    pub no_grids: bool,
     #[command(flatten)]
     pub json: JsonArg,
 }

@@ -361,6 +361,24 @@ fn bench_deform_prints_a_table_with_exact_residuals() {
 }
 
 #[test]
+fn bench_retarget_reports_fig_4_8_figures() {
+    let d = tmp();
+    let r = json_of(&motif(&["bench", "retarget", "--repeats", "1", "--no-grids", "--json"], d.path()));
+    let models = r["models"].as_array().unwrap();
+    assert_eq!(models.len(), 4);
+    for m in models {
+        let (o, dense) = (&m["offsets"], &m["dense"]);
+        // The thesis's point (Fig. 4.8): the detected offsets make a far smaller MRF.
+        assert!(o["nodes"].as_u64().unwrap() < dense["nodes"].as_u64().unwrap(), "{m}");
+        assert!(o["labels"].as_u64().unwrap() < dense["labels"].as_u64().unwrap(), "{m}");
+        assert!(m["principal_offsets"].as_u64().unwrap() >= 1, "{m}");
+    }
+    let i = &r["interactive"][0];
+    assert_eq!((i["nodes"].as_u64(), i["labels"].as_u64()), (Some(900), Some(30)));
+    assert!(r["grids"].as_array().unwrap().is_empty());
+}
+
+#[test]
 fn offsets_find_the_shelf_pitch_and_sparsity_runs_on_a_folder() {
     let d = tmp();
     assert!(motif(&["example", "shelf", "shelf.obj", "--structure", "s.json"], d.path()).status.success());

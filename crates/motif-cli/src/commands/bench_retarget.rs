@@ -203,7 +203,7 @@ pub fn run(a: BenchRetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
 
     // The solver on mrf_grid_v1 problems (generator seed 1, argmin start, as GCO was run).
     for (dims, labels, conn, gco_ms) in GCO_MS {
-        if dims[0] == 30 && !a.large {
+        if a.no_grids || (dims[0] == 30 && !a.large) {
             continue;
         }
         let name = format!("{}^3, {} labels, {}-conn.", dims[0], labels, conn.number());
