@@ -635,8 +635,26 @@ pub struct RetargetArgs {
     /// When the model has no repetition, scale it to --target-size instead of failing.
     #[arg(long)]
     pub plain_resize: bool,
+    /// How triangles travel with the voxels: `cut` (cut at voxel faces first, so that long
+    /// triangles spanning several cells stretch with the model) or `centroid` (whole, by the voxel
+    /// of their centroid; keeps the tessellation exactly).
+    #[arg(long, value_enum, default_value_t = AssignmentArg::Cut)]
+    pub assignment: AssignmentArg,
+    /// Also write a picture of the input and the result side by side (PNG), seen along the normal
+    /// of the plane of the first two principal offsets.
+    #[arg(long, value_name = "PNG")]
+    pub preview: Option<PathBuf>,
     #[command(flatten)]
     pub json: JsonArg,
+}
+
+/// `--assignment` of `motif retarget`.
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum AssignmentArg {
+    /// Whole triangles, by the voxel containing their centroid.
+    Centroid,
+    /// Triangles cut at the voxel faces first.
+    Cut,
 }
 
 #[derive(Debug, Args)]

@@ -414,9 +414,20 @@ fn offsets_find_the_shelf_pitch_and_sparsity_runs_on_a_folder() {
 fn retarget_adds_shelf_cells_and_refuses_models_without_repetition() {
     let d = tmp();
     assert!(motif(&["example", "shelf", "shelf.obj"], d.path()).status.success());
-    let r =
-        json_of(&motif(&["retarget", "shelf.obj", "--steps", "1,1", "-o", "big.obj", "--json"], d.path()));
+    let r = json_of(&motif(
+        &["retarget", "shelf.obj", "--steps", "1,1", "-o", "big.obj", "--preview", "big.png", "--json"],
+        d.path(),
+    ));
     assert_eq!(r["steps"], serde_json::json!([1, 1, 0]));
+    let png = std::fs::read(d.path().join("big.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+    // The picture is no overwrite of an input.
+    let o = motif(
+        &["retarget", "shelf.obj", "--steps", "1,1", "-o", "b2.obj", "--preview", "shelf.obj"],
+        d.path(),
+    );
+    assert_eq!(o.status.code(), Some(2));
+    assert!(!d.path().join("b2.obj").exists());
     let rep = &r["retarget"];
     assert!(rep["nodes"].as_u64().unwrap() < 200 && rep["labels"].as_u64().unwrap() == 4, "{rep}");
     // The generated 5x4 shelf is the ground truth: same bounding box.

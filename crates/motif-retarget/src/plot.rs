@@ -503,3 +503,121 @@ pub fn plot_points(points: &[[f64; 3]], a: usize, b: usize, title: &str, path: &
         Ok(())
     })
 }
+
+/// A side-by-side picture of a model before and after retargeting (`motif retarget --preview
+/// PNG`): both meshes rendered with the same orthographic camera and scale by a small z-buffer
+/// rasteriser (flat Lambert shading, a headlight along the view direction), input on the left,
+/// output on the right, each with its size in model units.
+///
+/// `view` is the direction the camera looks along (any length), `up` the screen's up direction
+/// (made orthogonal to `view`); for a facade or a shelf, look along the normal of the plane of
+/// its principal offsets.
+pub fn plot_retarget_preview(
+    input: &motif_core::TriMesh,
+    output: &motif_core::TriMesh,
+    view: [f64; 3],
+    up: [f64; 3],
+    title: &str,
+    path: &Path,
+) -> Result<()> {
+    use motif_core::geometry::{cross, dot, normalize, sub};
+    let d = normalize(view).ok_or_else(|| plot_err(path, "zero view direction"))?;
+    let up = sub(up, d.map(|c| c * dot(up, d)));
+    let v = normalize(up).or_else(|| normalize(cross(d, [1.0, 0.0, 0.0]))).unwrap_or([0.0, 1.0, 0.0]);
+    let u = cross(v, d);
+    let project = |p: [f64; 3]| (dot(p, u), dot(p, v), dot(p, d));
+    // Common scale: the larger of the two meshes' screen extents fits its panel.
+    let extent = |m: &motif_core::TriMesh| {
+        m.positions.iter().fold(
+            [f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY],
+            |b, &p| {
+                let (x, y, _) = project(p);
+                [b[0].min(x), b[1].max(x), b[2].min(y), b[3].max(y)]
+            },
+        )
+    };
+    let (ei, eo) = (extent(input), extent(output));
+    let (panel_w, panel_h, top) = (700usize, 620usize, 60usize);
+    let span = (ei[1] - ei[0]).max(eo[1] - eo[0]).max((ei[3] - ei[2]).max(eo[3] - eo[2]) * 700.0 / 620.0);
+    if !(span.is_finite() && span > 0.0) {
+        return Err(plot_err(path, "nothing to draw: the meshes are empty or degenerate"));
+    }
+    let scale = 0.9 * panel_w as f64 / span;
+    let (w, h) = (2 * panel_w, panel_h + top);
+    let mut rgb = vec![255u8; w * h * 3];
+    let mut depth = vec![f64::INFINITY; w * h];
+    for (k, (mesh, ext)) in [(input, ei), (output, eo)].into_iter().enumerate() {
+        let (cx, cy) = (0.5 * (ext[0] + ext[1]), 0.5 * (ext[2] + ext[3]));
+        let x0 = (k * panel_w) as f64 + 0.5 * panel_w as f64;
+        let y0 = top as f64 + 0.5 * panel_h as f64;
+        let to_px = |p: [f64; 3]| {
+            let (x, y, z) = project(p);
+            (x0 + (x - cx) * scale, y0 - (y - cy) * scale, z)
+        };
+        for t in &mesh.triangles {
+            let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
+            let Some(n) = normalize(cross(sub(b, a), sub(c, a))) else { continue };
+            let shade = 0.3 + 0.7 * dot(n, d).abs();
+            let col =
+                [(90.0 + 130.0 * shade) as u8, (110.0 + 125.0 * shade) as u8, (140.0 + 110.0 * shade) as u8];
+            let (pa, pb, pc) = (to_px(a), to_px(b), to_px(c));
+            let area = (pb.0 - pa.0) * (pc.1 - pa.1) - (pc.0 - pa.0) * (pb.1 - pa.1);
+            if area.abs() < 1e-12 {
+                continue;
+            }
+            let xmin = pa.0.min(pb.0).min(pc.0).floor().max((k * panel_w) as f64) as usize;
+            let xmax = pa.0.max(pb.0).max(pc.0).ceil().min(((k + 1) * panel_w - 1) as f64);
+            let ymin = pa.1.min(pb.1).min(pc.1).floor().max(top as f64) as usize;
+            let ymax = pa.1.max(pb.1).max(pc.1).ceil().min((h - 1) as f64);
+            if xmax < xmin as f64 || ymax < ymin as f64 {
+                continue;
+            }
+            for py in ymin..=ymax as usize {
+                for px in xmin..=xmax as usize {
+                    let (sx, sy) = (px as f64 + 0.5, py as f64 + 0.5);
+                    let w0 = ((pb.0 - sx) * (pc.1 - sy) - (pc.0 - sx) * (pb.1 - sy)) / area;
+                    let w1 = ((pc.0 - sx) * (pa.1 - sy) - (pa.0 - sx) * (pc.1 - sy)) / area;
+                    let w2 = 1.0 - w0 - w1;
+                    if w0 < 0.0 || w1 < 0.0 || w2 < 0.0 {
+                        continue;
+                    }
+                    let z = w0 * pa.2 + w1 * pb.2 + w2 * pc.2;
+                    let i = py * w + px;
+                    if z < depth[i] {
+                        depth[i] = z;
+                        rgb[3 * i..3 * i + 3].copy_from_slice(&col);
+                    }
+                }
+            }
+        }
+    }
+    register_fonts();
+    {
+        let root = BitMapBackend::with_buffer(&mut rgb, (w as u32, h as u32)).into_drawing_area();
+        let text = |s: &str, x: i32, y: i32, size: u32| {
+            root.draw(&Text::new(s.to_string(), (x, y), (FONT, size).into_font().color(&BLACK)))
+                .map_err(|e| plot_err(path, e))
+        };
+        text(title, 12, 8, 20)?;
+        for (k, (name, mesh, ext)) in [("input", input, ei), ("output", output, eo)].into_iter().enumerate() {
+            text(
+                &format!(
+                    "{name}: {:.3} × {:.3} (model units), {} triangles",
+                    ext[1] - ext[0],
+                    ext[3] - ext[2],
+                    mesh.triangles.len()
+                ),
+                (k * panel_w) as i32 + 12,
+                34,
+                15,
+            )?;
+        }
+        root.draw(&PathElement::new(
+            vec![(panel_w as i32, top as i32), (panel_w as i32, h as i32)],
+            RGBColor(200, 200, 200),
+        ))
+        .map_err(|e| plot_err(path, e))?;
+        root.present().map_err(|e| plot_err(path, e))?;
+    }
+    motif_core::io::write_png_rgb(path, w as u32, h as u32, &rgb).map_err(|e| plot_err(path, e))
+}

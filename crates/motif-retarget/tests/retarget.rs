@@ -450,7 +450,8 @@ fn cutting_at_voxel_faces_stretches_a_panel_spanning_all_cells() {
     assert_eq!(out.report.output_components, 55);
 
     // Centroid assignment copies the panel whole: it cannot cover the grown shelf.
-    let whole = run(&input, &pitch, [1, 1, 0], RetargetMethod::Offsets);
+    let centroid = RetargetOptions { assignment: TriangleAssignment::Centroid, ..Default::default() };
+    let whole = retarget(&input, &pitch, [1, 1, 0], &centroid, &NoProgress).unwrap();
     let d = two_sided_distance(&whole.mesh, &reference, 0.01);
     eprintln!("the same with centroid assignment: distance to reference {d:.2e}");
     assert!(d > 0.005, "{d}");
@@ -703,6 +704,13 @@ fn session_reuses_descriptors_and_is_deterministic() {
     // Zero steps reproduce the input exactly.
     let same = s.retarget([0, 0, 0], &NoProgress).unwrap();
     assert_eq!(same.report.labels, 1);
+    assert!(two_sided_distance(&same.mesh, &ex.mesh, 0.01) < 1e-12);
+    // Cut at voxel faces (the default) the boards spanning cells gain vertices; copied whole, the
+    // tessellation is the input's.
+    assert!(same.mesh.triangles.len() >= ex.mesh.triangles.len());
+    let centroid = RetargetOptions { assignment: TriangleAssignment::Centroid, ..Default::default() };
+    let mut s = RetargetSession::new(&ex.mesh, &pitch, &centroid, &NoProgress).unwrap();
+    let same = s.retarget([0, 0, 0], &NoProgress).unwrap();
     assert!(two_sided_distance(&same.mesh, &ex.mesh, 0.01) < 1e-12);
     assert_eq!(same.mesh.triangles.len(), ex.mesh.triangles.len());
 }

@@ -10,11 +10,11 @@ use motif_retarget::offsets::{
     OffsetAnalysis, OffsetOptions, Repetition, analyze_features, prepare_features,
 };
 use motif_retarget::retarget::{
-    RetargetMethod, RetargetOptions, RetargetReport, RetargetSession, orient_offsets,
+    RetargetMethod, RetargetOptions, RetargetReport, RetargetSession, TriangleAssignment, orient_offsets,
 };
 use serde::Serialize;
 
-use crate::cli::{GlobalArgs, RetargetArgs, RetargetMethodArg};
+use crate::cli::{AssignmentArg, GlobalArgs, RetargetArgs, RetargetMethodArg};
 use crate::output::{bad_input, check_output, maybe_json, ms_since};
 use crate::progress::Bar;
 
@@ -40,10 +40,37 @@ fn extent_along(mesh: &TriMesh, d: [f64; 3]) -> f64 {
     hi - lo
 }
 
+/// The preview camera: a three-quarter view (about 25° off the normal, so that recesses and
+/// depth show under the headlight) of the plane of the first two principal offsets, up along the
+/// second; with one offset, of the plane holding it and the bounding box's longest other axis.
+fn preview_camera(mesh: &TriMesh, principal: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
+    use motif_core::geometry::cross;
+    let e = mesh.aabb().map_or([1.0; 3], |b| b.extent());
+    let (a, b) = match principal {
+        [a, b, ..] => (*a, *b),
+        [a] => {
+            let mut axes = [0usize, 1, 2];
+            axes.sort_by(|&i, &j| (e[j] * (1.0 - a[j].abs())).total_cmp(&(e[i] * (1.0 - a[i].abs()))));
+            let mut b = [0.0; 3];
+            b[axes[0]] = 1.0;
+            (*a, b)
+        }
+        [] => ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0]),
+    };
+    let (Some(n), Some(ua), Some(ub)) = (normalize(cross(a, b)), normalize(a), normalize(b)) else {
+        return ([0.0, 0.0, -1.0], [0.0, 1.0, 0.0]);
+    };
+    let view = normalize([0, 1, 2].map(|k| -n[k] + 0.35 * ua[k] + 0.3 * ub[k])).unwrap_or(n);
+    (view, ub)
+}
+
 pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let t0 = Instant::now();
     let mesh = motif_core::io::read_mesh(&a.mesh)?;
     check_output(&a.output, &[&a.mesh], g.force)?;
+    if let Some(p) = &a.preview {
+        check_output(p, &[&a.mesh, &a.output], g.force)?;
+    }
     let target = match &a.target_size {
         Some(v) if v.len() == 3 && v.iter().all(|x| *x > 0.0 && x.is_finite()) => Some([v[0], v[1], v[2]]),
         Some(_) => return Err(bad_input("--target-size needs three positive sizes X,Y,Z")),
@@ -138,11 +165,20 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         },
         seed: g.seed,
         force: g.force,
+        assignment: match a.assignment {
+            AssignmentArg::Centroid => TriangleAssignment::Centroid,
+            AssignmentArg::Cut => TriangleAssignment::Cut,
+        },
         ..Default::default()
     };
     let res = RetargetSession::with_features(&mesh, &features, &principal, &options, &bar)?
         .retarget(steps, &bar)?;
     motif_core::io::write(&a.output, &Model::from_mesh(&res.mesh), &WriteOptions::default())?;
+    if let Some(p) = &a.preview {
+        let (view, up) = preview_camera(&mesh, &principal);
+        let title = format!("{}: steps {:+} {:+} {:+}", a.mesh.display(), steps[0], steps[1], steps[2]);
+        motif_retarget::plot::plot_retarget_preview(&mesh, &res.mesh, view, up, &title, p)?;
+    }
     let r = &res.report;
     if !crate::output::json_on_stdout(&a.json.json) && !g.quiet {
         for (k, o) in principal.iter().enumerate() {
@@ -161,6 +197,9 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             mesh.num_triangles()
         );
         eprintln!("wrote {}", a.output.display());
+        if let Some(p) = &a.preview {
+            eprintln!("wrote {}", p.display());
+        }
     }
     let report = Report {
         mesh: a.mesh.display().to_string(),
