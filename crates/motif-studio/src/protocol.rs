@@ -3,7 +3,7 @@
 //! Text messages are JSON objects tagged by `"type"` ([`ClientMessage`], [`ServerMessage`]).
 //! Geometry travels in binary messages so a 100k-vertex frame is one 1.2 MB copy, not JSON:
 //!
-//! - server → client: a [`FRAME_HEADER_BYTES`]-byte little-endian header ([`FrameHeader`]:
+//! - server → client: a [`FRAME_HEADER_BYTES`]-byte little-endian header (timings in [`FrameTiming`]:
 //!   `[kind u32, seq u32, vertices u32, triangles u32, solve_ms f32, queue_ms f32, encode_ms f32,
 //!   flags u32, received_at f64, sent_at f64]`), then `vertices × 3` f32 positions, then (flag
 //!   [`FLAG_NORMALS`]) `vertices × 3` f32 unit normals, then (kinds [`BinaryKind::Model`] and
