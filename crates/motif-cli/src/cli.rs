@@ -481,8 +481,9 @@ pub enum BenchCommand {
     /// Thesis Table 3.1: sizes, prefactor, solve (5 iterations), lift and frames per second.
     Deform(BenchDeformArgs),
     /// The studio's end-to-end frame time: drags a handle on a generated model in headless
-    /// Chromium (needs scripts/studio-browser-setup.sh) and prints the median of solve, transfer,
-    /// upload + draw.
+    /// Chromium (needs scripts/studio-browser-setup.sh) and prints the median of every stage of a
+    /// frame (request, server queue / solve / encode, reply, decode, GPU upload, render), the
+    /// end-to-end time and the frame rate.
     Studio(BenchStudioArgs),
     /// Thesis 5.5: generated scenes at graded difficulty, scored for EM + SC, SC (no EM) and the
     /// supervised rigid-ICP baseline: mean precision, recall and F at τ = 0.125, time per stage.
@@ -541,6 +542,12 @@ pub struct BenchStudioArgs {
     /// Generated example to drag (see `motif example --list`).
     #[arg(long, default_value = "windmill_100k")]
     pub example: String,
+    /// Browser window width, pixels (the 3D view is the window less the 330-pixel side panel).
+    #[arg(long, default_value_t = 1280)]
+    pub width: u32,
+    /// Browser window height, pixels.
+    #[arg(long, default_value_t = 720)]
+    pub height: u32,
 }
 
 #[derive(Debug, Args)]

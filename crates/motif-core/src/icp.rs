@@ -458,7 +458,17 @@ fn kabsch_step(state: &Correspondences, target: &[Point3], pc: Point3, rmax: f64
         let b = Vector3::from(sub(target[j as usize], qc));
         cov += b * a.transpose();
     }
-    // cov = Σ (q − q̄)(p − p̄)ᵀ = U S Vᵀ ⇒ R = U diag(1, 1, det(U Vᵀ)) Vᵀ.
+    let r = kabsch_rotation(&cov);
+    let t = sub(qc, rotate(&r, pc));
+    // Displacement bound: translation of the centroid plus rotation about it.
+    let angle = rotation_angle(&r);
+    let moved = norm(sub(crate::geometry::add(rotate(&r, pc), t), pc));
+    Step { transform: mat4_from_rt(r, t), max_displacement: moved + angle * rmax }
+}
+
+/// The rotation of Kabsch's method from the cross-covariance `cov = Σ (q − q̄)(p − p̄)ᵀ`:
+/// `cov = U S Vᵀ ⇒ R = U diag(1, 1, det(U Vᵀ)) Vᵀ` (reflections excluded).
+fn kabsch_rotation(cov: &Matrix3<f64>) -> [[f64; 3]; 3] {
     let svd = cov.svd(true, true);
     let r = match (svd.u, svd.v_t) {
         (Some(mut u), Some(v_t)) => {
@@ -471,12 +481,41 @@ fn kabsch_step(state: &Correspondences, target: &[Point3], pc: Point3, rmax: f64
         }
         _ => Matrix3::identity(),
     };
-    let r: [[f64; 3]; 3] = std::array::from_fn(|a| std::array::from_fn(|b| r[(a, b)]));
-    let t = sub(qc, rotate(&r, pc));
-    // Displacement bound: translation of the centroid plus rotation about it.
-    let angle = rotation_angle(&r);
-    let moved = norm(sub(crate::geometry::add(rotate(&r, pc), t), pc));
-    Step { transform: mat4_from_rt(r, t), max_displacement: moved + angle * rmax }
+    std::array::from_fn(|a| std::array::from_fn(|b| r[(a, b)]))
+}
+
+/// The rigid motion `target_from_source` (rotation and translation, no reflection) minimising
+/// `Σ |R pᵢ + t − qᵢ|²` over paired points `pᵢ = source[i]`, `qᵢ = target[i]` (Kabsch 1976).
+/// When the source points do not span a plane (one point, or all on a line) the rotation is
+/// undetermined and only the translation of the centroids is returned. `None` when the slices
+/// are empty, differ in length or hold a non-finite coordinate.
+pub fn fit_rigid(source: &[Point3], target: &[Point3]) -> Option<Mat4> {
+    if source.is_empty()
+        || source.len() != target.len()
+        || !source.iter().chain(target).all(|p| is_finite(*p))
+    {
+        return None;
+    }
+    let n = source.len() as f64;
+    let centroid = |v: &[Point3]| scale(v.iter().fold([0.0; 3], |a, p| crate::geometry::add(a, *p)), 1.0 / n);
+    let (pc, qc) = (centroid(source), centroid(target));
+    let mut cov = Matrix3::<f64>::zeros();
+    let mut spread = Matrix3::<f64>::zeros();
+    for (p, q) in source.iter().zip(target) {
+        let a = Vector3::from(sub(*p, pc));
+        cov += Vector3::from(sub(*q, qc)) * a.transpose();
+        spread += a * a.transpose();
+    }
+    // Rank of the source spread: below 2 the rotation about the line (or point) is free.
+    let ev = SymmetricEigen::new(spread).eigenvalues;
+    let mut ev = [ev[0], ev[1], ev[2]];
+    ev.sort_by(|a, b| b.total_cmp(a));
+    let r = if ev[0] > 0.0 && ev[1] > 1e-12 * ev[0] {
+        kabsch_rotation(&cov)
+    } else {
+        [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+    };
+    Some(mat4_from_rt(r, sub(qc, rotate(&r, pc))))
 }
 
 fn rotate(r: &[[f64; 3]; 3], v: Point3) -> Point3 {
@@ -571,5 +610,29 @@ mod tests {
             assert!((r.transform[2][3] + 0.3).abs() < 1e-9, "{:?}", r.transform);
             assert!(r.rmse < 1e-9);
         }
+    }
+
+    #[test]
+    fn fit_rigid_recovers_a_motion_and_degrades_to_translation() {
+        let pts: Vec<Point3> = (0..50)
+            .map(|i| {
+                let t = i as f64;
+                [(t * 0.37).sin(), (t * 0.91).cos(), (t * 0.13).sin() * 0.5]
+            })
+            .collect();
+        let m = mat4_from_rt(rotation_about_axis([0.3, -1.0, 0.4], 0.8), [0.2, -0.5, 1.5]);
+        let moved: Vec<Point3> = pts.iter().map(|p| transform_point(&m, *p)).collect();
+        let f = fit_rigid(&pts, &moved).unwrap();
+        for (a, b) in f.iter().flatten().zip(m.iter().flatten()) {
+            assert!((a - b).abs() < 1e-9, "{f:?} vs {m:?}");
+        }
+        // One point, or points on a line: the centroid's translation only.
+        let line: Vec<Point3> = (0..5).map(|i| [i as f64, 0.0, 0.0]).collect();
+        let shifted: Vec<Point3> = line.iter().map(|p| [p[0] + 1.0, p[1] + 2.0, p[2]]).collect();
+        let f = fit_rigid(&line, &shifted).unwrap();
+        assert_eq!(f, mat4_from_rt([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], [1.0, 2.0, 0.0]));
+        assert!(fit_rigid(&[], &[]).is_none());
+        assert!(fit_rigid(&line, &shifted[..2]).is_none());
+        assert!(fit_rigid(&[[f64::NAN, 0.0, 0.0]], &[[0.0; 3]]).is_none());
     }
 }

@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 use motif_core::TriMesh;
 use motif_core::geometry::{Mat4, Point3};
 use motif_core::procedural::SymmetryAnnotation;
+use motif_core::progress::{NoProgress, Progress};
 
 use crate::annotation::{ResolvedAnnotation, check_mesh, resolve_annotation};
 use crate::basis::SymmetricBasis;
@@ -202,6 +203,19 @@ impl DeformSession {
         annotation: &SymmetryAnnotation,
         options: &DeformOptions,
     ) -> Result<DeformSession> {
+        Self::with_progress(mesh, annotation, options, &NoProgress)
+    }
+
+    /// [`DeformSession::new`], reporting its stages (`annotation`, `sampling`, `lifting`,
+    /// `basis`) to `progress`. A front end stops the precomputation by unwinding out of a
+    /// progress call (the studio's cancel): stages are the points where that can happen.
+    pub fn with_progress(
+        mesh: &TriMesh,
+        annotation: &SymmetryAnnotation,
+        options: &DeformOptions,
+        progress: &dyn Progress,
+    ) -> Result<DeformSession> {
+        progress.start("annotation", 0);
         let diag = check_mesh(mesh)?;
         options.editing.validate()?;
         let mut warnings = Vec::new();
@@ -219,12 +233,15 @@ impl DeformSession {
             }
         };
         timings.annotation_ms = ms(t);
+        progress.start("sampling", 0);
         let t = Instant::now();
         let sampling = symmetric_sampling(mesh, &resolved, &options.sampling)?;
         timings.sampling_ms = ms(t);
+        progress.start("lifting", MAX_SUPPORT_ROUNDS as u64 + 1);
         let t = Instant::now();
         let mut sampling = sampling;
         let mut lifting = Lifting::new(mesh, &resolved, &sampling, &options.lift)?;
+        progress.inc(1);
         // Vertices whose symmetry-consistent support is empty (e.g. on an edge where four cells of
         // a lattice meet): seed orbits right there, so every cell gets a sample at that vertex.
         for _ in 0..MAX_SUPPORT_ROUNDS {
@@ -234,8 +251,10 @@ impl DeformSession {
             let seeds = lifting.fallback_seeds(&mesh.positions, 2.0 * sampling.radius);
             add_orbits(&mut sampling, mesh, &resolved, &seeds)?;
             lifting = Lifting::new(mesh, &resolved, &sampling, &options.lift)?;
+            progress.inc(1);
         }
         timings.lift_setup_ms = ms(t);
+        progress.start("basis", 0);
         let t = Instant::now();
         let basis = SymmetricBasis::new(&sampling);
         let graph = SamplingGraph::new(&sampling.positions, sampling.radius)?;
@@ -268,6 +287,7 @@ impl DeformSession {
             timings,
             ..Default::default()
         };
+        progress.finish();
         let workspace = Workspace::new(basis.dof(), sampling.len(), 0, None);
         let lift_work = vec![[0.0; 3]; lifting.num_rows()];
         Ok(DeformSession {

@@ -19,12 +19,13 @@ export function startStudio(motif, root, extra = []) {
   });
 }
 
-/** Headless Chromium with software WebGL (SwiftShader) and a fresh profile. */
-export async function launchBrowser() {
+/** Headless Chromium with software WebGL (SwiftShader) and a fresh profile; downloads allowed. */
+export async function launchBrowser(viewport = { width: 1280, height: 800 }) {
   return chromium.launchPersistentContext(mkdtempSync(join(tmpdir(), 'motif-studio-chromium-')), {
     executablePath: process.env.MOTIF_CHROMIUM || '/usr/bin/chromium',
     headless: true,
-    viewport: { width: 1280, height: 800 },
+    acceptDownloads: true,
+    viewport,
     args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
       '--disable-background-networking', '--disable-component-update', '--disable-sync',
       '--use-angle=swiftshader', '--enable-unsafe-swiftshader'],

@@ -1,11 +1,13 @@
 // End-to-end test of the studio in a real browser (playwright-core driving /usr/bin/chromium):
-// deform a generated windmill with the mouse, export and reload it, resize a generated shelf by a
-// step, show detections on a generated facade scan, detect the symmetries of a fan. Screenshots
-// of every step go to target/studio-e2e/.
+// deform a generated windmill with the mouse, add a handle after the drag (the shape stays),
+// undo / redo, export it (a browser download) and load the download back through the file
+// picker, reopen the export with its annotation, resize a generated shelf by a step, show
+// detections on a generated facade scan from a file and from the Detect button (with progress),
+// detect the symmetries of a fan. Screenshots of every step go to target/studio-e2e/.
 //
 //   node crates/motif-studio/e2e/studio.e2e.mjs [path/to/motif]
 import { execFileSync } from 'node:child_process';
-import { mkdirSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
+import { existsSync, mkdirSync, readFileSync, rmSync, statSync, writeFileSync } from 'node:fs';
 import { dirname, join, resolve } from 'node:path';
 import { fileURLToPath } from 'node:url';
 import { launchBrowser, startStudio, until } from './common.mjs';
@@ -67,7 +69,7 @@ try {
     return window.motif.restVertex(best);
   }, hi[1]);
   await clickWorld([tip[0], tip[1] - 0.4, tip[2] - 0.05]);
-  st = await until(page, (s) => s.handles === 2 && s.framesReceived > 0);
+  st = await until(page, (s) => s.handles === 2 && s.busy === null);
   check(st.handleSamples.every((k) => k > 0), `two handles picked by clicking (samples ${st.handleSamples})`);
   const g = await page.evaluate(() => window.motif.gizmoScreen());
   await page.mouse.move(g.x, g.y);
@@ -82,12 +84,73 @@ try {
   check(st.symmetryResidual < 1e-6, `symmetry residual after the drag ${st.symmetryResidual} (~0)`);
   check(st.medianFrameMs > 0, `frame time shown (median ${st.medianFrameMs && st.medianFrameMs.toFixed(1)} ms)`);
   await shot('02-windmill-deformed.png');
+  const dragged = await page.evaluate(() => window.motif.positions());
+  const rest = await page.evaluate(() => { const n = window.motif.state.vertices; const v = []; for (let i = 0; i < n; i++) v.push(...window.motif.restVertex(i)); return v; });
+  const maxDiff = (a, b) => a.reduce((m, x, i) => Math.max(m, Math.abs(x - b[i])), 0);
+  const dragMove = maxDiff(dragged, rest);
 
-  // 2. Export the deformed windmill with its annotation, open it again.
+  // 1b. A third handle on a part the drag moved (another blade: the symmetric copies follow):
+  // the shape must stay as it is, not snap back.
+  const third = await page.evaluate(([moved, restPos, h2]) => {
+    const n = moved.length / 3;
+    let best = null;
+    for (let i = 0; i < n; i++) {
+      const d = Math.hypot(moved[3 * i] - restPos[3 * i], moved[3 * i + 1] - restPos[3 * i + 1], moved[3 * i + 2] - restPos[3 * i + 2]);
+      const far = Math.hypot(restPos[3 * i] - h2[0], restPos[3 * i + 1] - h2[1], restPos[3 * i + 2] - h2[2]);
+      if (far < 1.0) continue;
+      const p = [moved[3 * i], moved[3 * i + 1], moved[3 * i + 2]];
+      const s = window.motif.project(p);
+      const g = window.motif.gizmoScreen();
+      if (Math.hypot(s.x - g.x, s.y - g.y) < 150) continue; // a click there would grab the gizmo
+      if (document.elementFromPoint(s.x, s.y) !== document.querySelector('#viewport canvas')) continue; // under the HUD
+      // Visible, and not on a silhouette: the surface around it is hit too.
+      const near = (x, y) => { const hit = window.motif.surfaceAt(x, y); return hit && Math.hypot(hit[0] - p[0], hit[1] - p[1], hit[2] - p[2]) < 0.3; };
+      if (![[0, 0], [4, 0], [-4, 0], [0, 4], [0, -4]].every(([dx, dy]) => near(s.x + dx, s.y + dy))) continue;
+      if (!best || d > best.d) best = { d, s };
+    }
+    return best;
+  }, [dragged, rest, tip]);
+  check(third && third.d > 0.3 * dragMove, `a visible vertex moved by the drag to put a third handle on (moved ${third && third.d.toFixed(3)} of ${dragMove.toFixed(3)})`);
+  let version = (await page.evaluate(() => window.motif.state)).meshVersion;
+  await page.mouse.click(third.s.x, third.s.y);
+  st = await until(page, (s, v) => s.handles === 3 && s.busy === null && s.meshVersion > v, version);
+  const kept = await page.evaluate(() => window.motif.positions());
+  const drift = maxDiff(kept, dragged);
+  check(drift < 0.15 * dragMove, `adding a handle after the drag kept the shape (changed by ${drift.toFixed(4)}, the drag moved ${dragMove.toFixed(3)})`);
+  await shot('02b-windmill-third-handle.png');
+
+  // 1c. Undo: back to two handles with the drag, then to the rest pose; redo: the drag again.
+  check(st.undo === 4 && st.redo === 0, `undo stack after picks, drag and pick: ${st.undo} / ${st.redo}`);
+  await page.click('#undo');
+  st = await until(page, (s) => s.handles === 2 && s.busy === null && s.redo === 1 && s.symmetryResidual !== null);
+  check(maxDiff(await page.evaluate(() => window.motif.positions()), dragged) < 0.15 * dragMove, 'undo removed the third handle and kept the drag');
+  await page.click('#undo');
+  st = await until(page, (s) => s.handles === 2 && s.busy === null && s.redo === 2 && s.symmetryResidual !== null);
+  const undone = maxDiff(await page.evaluate(() => window.motif.positions()), rest);
+  check(undone < 1e-4, `undo again: back to the rest pose (max distance ${undone.toExponential(1)})`);
+  await shot('02c-windmill-undone.png');
+  await page.click('#redo');
+  st = await until(page, (s) => s.handles === 2 && s.busy === null && s.redo === 1 && s.released > 1 && s.symmetryResidual !== null);
+  const redone = maxDiff(await page.evaluate(() => window.motif.positions()), dragged);
+  check(redone < 1e-4 && st.symmetryResidual < 1e-6, `redo: the drag is back (max distance ${redone.toExponential(1)}, residual ${st.symmetryResidual})`);
+
+  // 2. Export the deformed windmill with its annotation: written under the root and downloaded
+  // by the browser; the download loads back through the file picker; the export opens again.
   await page.fill('#export-path', 'windmill-deformed.obj');
+  const downloaded = page.waitForEvent('download', { timeout: 60000 });
   await page.click('#export');
+  const download = await downloaded;
+  const savedAs = join(out, `download-${download.suggestedFilename()}`);
+  await download.saveAs(savedAs);
   st = await until(page, (s) => s.saved.includes('windmill-deformed.obj'));
   check(st.saved.includes('windmill-deformed.sym.json'), `exported ${st.saved.join(', ')}`);
+  check(download.suggestedFilename() === 'windmill-deformed.obj' && existsSync(savedAs) && statSync(savedAs).size === statSync(join(root, 'windmill-deformed.obj')).size,
+    `the browser downloaded ${download.suggestedFilename()} (${existsSync(savedAs) ? statSync(savedAs).size : 0} bytes)`);
+  await page.setInputFiles('#upload', savedAs);
+  st = await until(page, (s) => s.name === 'download-windmill-deformed.obj' && s.meshVersion > 0);
+  const uploaded = maxDiff(await page.evaluate(() => window.motif.positions()), dragged);
+  check(st.vertices === 1064 && uploaded < 1e-4, `the download loads back through the file picker: ${st.vertices} vertices, the deformed shape (max distance ${uploaded.toExponential(1)})`);
+  await shot('03a-download-uploaded.png');
   await page.fill('#open-path', 'windmill-deformed.obj');
   await page.click('#open-btn');
   st = await until(page, (s) => s.name === 'windmill-deformed.obj');
@@ -117,6 +180,16 @@ try {
     `detections shown: ${st.detections.classes} classes, ${st.detections.instances} boxes, ${st.detections.coloured} coloured points`);
   await shot('05-facade-detections.png');
 
+  // 4b. Building-block detection from the Detect button, with progress, classes drawn.
+  await page.evaluate(() => { window.motif.state.detections = null; window.motif.state.progressLog = []; });
+  await page.click('#detect');
+  st = await until(page, (s) => s.busy === null && s.detections !== null, null, 600000);
+  const stages = [...new Set(st.progressLog.filter((p) => p.job === 'detect').map((p) => p.stage))];
+  check(stages.length > 0, `detection progress shown (stages: ${stages.join(', ')})`);
+  check(st.detections.classes > 0 && st.detections.instances > 0 && st.detections.coloured > 0,
+    `detected: ${st.detections.classes} classes, ${st.detections.instances} boxes, ${st.detections.coloured} coloured points`);
+  await shot('05b-facade-detected.png');
+
   // 5. Symmetry detection on the fan, shown as planes and axes.
   await page.selectOption('#example-select', 'fan');
   await page.click('#example-open');
@@ -131,6 +204,8 @@ try {
 } catch (e) {
   failed++;
   console.log(`FAIL ${e.message}`);
+  const last = await page.evaluate(() => { const s = window.motif.state; return { name: s.name, handles: s.handles, busy: s.busy, errors: s.errors, undo: s.undo, redo: s.redo, meshVersion: s.meshVersion, saved: s.saved, downloads: s.downloads }; }).catch(() => null);
+  console.log(`page state: ${JSON.stringify(last)}`);
   await page.screenshot({ path: join(out, 'failure.png') }).catch(() => {});
 } finally {
   await context.close();

@@ -6,8 +6,11 @@
 //! computation with [`std::panic::resume_unwind`] and a [`Cancelled`] payload: no panic hook runs,
 //! rayon carries the payload to the caller, and the job runner recognises it. Library state is
 //! plain owned data built by the computation, so unwinding out of it leaves nothing behind.
-//! Computations that never report progress (building a deformation session) cannot be stopped
-//! this way; for them a cancel only discards the result.
+//! Building a deformation session reports its stages
+//! ([`motif_deform::DeformSession::with_progress`]), so it stops at the next stage.
+//!
+//! [`Jobs`] holds the tokens of every running job of one connection (commands and the session
+//! build run on different workers): a cancel request, or the client leaving, cancels them all.
 
 use std::sync::Arc;
 use std::sync::Mutex;
@@ -56,6 +59,57 @@ impl CancelToken {
             }
             notified.await;
         }
+    }
+}
+
+/// The running jobs of one connection.
+#[derive(Debug, Clone, Default)]
+pub struct Jobs {
+    inner: Arc<(Mutex<Vec<CancelToken>>, AtomicBool)>,
+}
+
+/// Unregisters a job's token when the job ends.
+#[derive(Debug)]
+pub struct JobGuard {
+    jobs: Jobs,
+    token: CancelToken,
+}
+
+impl Drop for JobGuard {
+    fn drop(&mut self) {
+        let mut v = self.jobs.inner.0.lock().unwrap_or_else(|e| e.into_inner());
+        v.retain(|t| !Arc::ptr_eq(&t.inner, &self.token.inner));
+    }
+}
+
+impl Jobs {
+    /// A token for a new job, registered until the guard drops; already cancelled once the
+    /// connection has closed.
+    pub fn start(&self) -> (CancelToken, JobGuard) {
+        let token = CancelToken::new();
+        self.inner.0.lock().unwrap_or_else(|e| e.into_inner()).push(token.clone());
+        if self.inner.1.load(Ordering::SeqCst) {
+            token.cancel();
+        }
+        (token.clone(), JobGuard { jobs: self.clone(), token })
+    }
+
+    /// Cancels every running job.
+    pub fn cancel_all(&self) {
+        for t in self.inner.0.lock().unwrap_or_else(|e| e.into_inner()).iter() {
+            t.cancel();
+        }
+    }
+
+    /// The connection closed: cancels every running job and every job started later.
+    pub fn close(&self) {
+        self.inner.1.store(true, Ordering::SeqCst);
+        self.cancel_all();
+    }
+
+    /// Whether [`Jobs::close`] was called.
+    pub fn is_closed(&self) -> bool {
+        self.inner.1.load(Ordering::SeqCst)
     }
 }
 
@@ -138,5 +192,27 @@ impl Progress for JobProgress {
 
     fn finish(&self) {
         self.check();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn jobs_cancel_running_and_later_jobs() {
+        let jobs = Jobs::default();
+        let (a, ga) = jobs.start();
+        let (b, gb) = jobs.start();
+        drop(gb);
+        jobs.cancel_all();
+        assert!(a.is_cancelled());
+        assert!(!b.is_cancelled(), "a finished job is no longer registered");
+        drop(ga);
+        let (c, _gc) = jobs.start();
+        assert!(!c.is_cancelled());
+        jobs.close();
+        assert!(c.is_cancelled());
+        assert!(jobs.start().0.is_cancelled());
     }
 }

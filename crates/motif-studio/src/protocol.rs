@@ -3,10 +3,16 @@
 //! Text messages are JSON objects tagged by `"type"` ([`ClientMessage`], [`ServerMessage`]).
 //! Geometry travels in binary messages so a 100k-vertex frame is one 1.2 MB copy, not JSON:
 //!
-//! - server → client: a [`FRAME_HEADER_BYTES`]-byte little-endian header `[kind u32, seq u32,
-//!   vertices u32, triangles u32, solve_ms f32, 3 × reserved u32]`, then `vertices × 3` f32
-//!   positions, then (kinds [`BinaryKind::Model`] and [`BinaryKind::Retargeted`]) `triangles × 3`
-//!   u32 indices.
+//! - server → client: a [`FRAME_HEADER_BYTES`]-byte little-endian header (timings in [`FrameTiming`]:
+//!   `[kind u32, seq u32, vertices u32, triangles u32, solve_ms f32, queue_ms f32, encode_ms f32,
+//!   flags u32, received_at f64, sent_at f64]`), then `vertices × 3` f32 positions, then (flag
+//!   [`FLAG_NORMALS`]) `vertices × 3` f32 unit normals, then (kinds [`BinaryKind::Model`] and
+//!   [`BinaryKind::Retargeted`]) `triangles × 3` u32 indices. A [`BinaryKind::File`] message
+//!   instead carries a file for the browser to download: `vertices` is the length of its UTF-8
+//!   name and `triangles` the length of its bytes, which follow the header in that order.
+//!   `received_at` / `sent_at` are the server's wall clock (Unix epoch, ms) when the request
+//!   arrived and when the reply was encoded, so the page can split a frame's time into request
+//!   transfer, server time and reply transfer (same machine, same clock).
 //! - client → server: an upload, `[name length u32][name UTF-8][file bytes]`.
 //!
 //! Conventions: positions in model units, transforms row-major 4×4 acting on column vectors
@@ -18,7 +24,29 @@ use motif_core::procedural::SymmetryAnnotation;
 use serde::{Deserialize, Serialize};
 
 /// Bytes of the header of every server binary message.
-pub const FRAME_HEADER_BYTES: usize = 32;
+pub const FRAME_HEADER_BYTES: usize = 48;
+
+/// Header flag: unit vertex normals follow the positions.
+pub const FLAG_NORMALS: u32 = 1;
+
+/// The timing fields of a binary message's header (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FrameTiming {
+    /// Server solve time, ms.
+    pub solve_ms: f32,
+    /// Time the request waited on the server before its solve started, ms.
+    pub queue_ms: f32,
+    /// Server wall clock when the request arrived, Unix epoch ms (0: not a reply to a request).
+    pub received_at: f64,
+}
+
+/// The server's wall clock, Unix epoch milliseconds.
+pub fn unix_ms() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs_f64() * 1e3)
+        .unwrap_or(0.0)
+}
 
 /// What a server binary message holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -30,6 +58,8 @@ pub enum BinaryKind {
     DeformFrame = 2,
     /// The retargeted model: positions and triangles.
     Retargeted = 3,
+    /// An exported file for the browser to download: name and bytes.
+    File = 4,
 }
 
 /// One ball of a handle region, model units, placed on the rest shape.
@@ -92,6 +122,13 @@ pub enum ClientMessage {
     SetHandles {
         /// The handles, in the order of `transforms` in [`ClientMessage::Drag`].
         handles: Vec<HandleSpec>,
+        /// Target (rest → target transform) of each handle; `null` or missing: a handle equal to
+        /// one of the previous set keeps that handle's current target, any other handle gets the
+        /// rigid motion that best fits its region's current deformed positions. So adding a
+        /// handle after a drag keeps the shape as it is. The chosen targets are sent back in
+        /// [`ServerMessage::Handles`], followed by a [`BinaryKind::DeformFrame`] (sequence 0).
+        #[serde(default)]
+        transforms: Vec<Option<Mat4>>,
     },
     /// Move the handles; answered by a [`BinaryKind::DeformFrame`]. Only the newest pending drag
     /// is solved: older ones are dropped, never queued.
@@ -100,6 +137,9 @@ pub enum ClientMessage {
         seq: u32,
         /// One transform per handle (rest → target).
         transforms: Vec<Mat4>,
+        /// Also send unit vertex normals of the deformed mesh (for smooth shading).
+        #[serde(default)]
+        normals: bool,
     },
     /// The drag ended: measure the symmetry residual and the handle fit of the current frame.
     Release,
@@ -113,6 +153,10 @@ pub enum ClientMessage {
         /// Replace an existing file (inputs are never replaced).
         #[serde(default)]
         overwrite: bool,
+        /// Also send the written files back as [`BinaryKind::File`] messages, for the browser to
+        /// download.
+        #[serde(default)]
+        download: bool,
     },
     /// Principal offsets (`motif_retarget::offsets`), with progress; cancellable.
     Offsets,
@@ -139,8 +183,10 @@ pub enum ClientMessage {
 pub struct Limits {
     /// Largest text message, bytes; larger ones are answered with an error. Default 1 MiB.
     pub max_text_bytes: usize,
-    /// Largest upload (binary message), bytes. A larger message closes that connection with
-    /// WebSocket code 1009 (the server keeps serving). Default 256 MiB.
+    /// Largest upload (binary message), bytes. Larger ones are answered with an error on the same
+    /// connection, up to twice this size (the WebSocket transport reads at most that much); a
+    /// message larger still closes that connection with WebSocket code 1009 (the server keeps
+    /// serving). Default 256 MiB.
     pub max_upload_bytes: usize,
     /// Most concurrent sessions (WebSocket connections). Default 64.
     pub max_sessions: usize,
@@ -256,6 +302,9 @@ pub enum ServerMessage {
         prefactor_ms: f64,
         /// Session precomputation (sampling, basis, lift), ms; 0 when reused.
         session_ms: f64,
+        /// The target of each handle (rest → target): as given, kept from the previous set, or
+        /// fitted to the current shape (see [`ClientMessage::SetHandles`]).
+        transforms: Vec<Mat4>,
     },
     /// Measurements of the current deformation (after [`ClientMessage::Release`]).
     Deformed {
@@ -314,21 +363,31 @@ pub enum ServerMessage {
     },
 }
 
-/// Builds a server binary message.
+/// Builds a server binary message: header, positions, optional normals, triangles. The header's
+/// `encode_ms` and `sent_at` are filled in last.
 pub fn encode_binary(
     kind: BinaryKind,
     seq: u32,
     positions: &[Point3],
+    normals: Option<&[Point3]>,
     triangles: &[[u32; 3]],
-    solve_ms: f32,
+    timing: FrameTiming,
 ) -> Vec<u8> {
-    let mut out = Vec::with_capacity(FRAME_HEADER_BYTES + positions.len() * 12 + triangles.len() * 12);
-    for v in [kind as u32, seq, positions.len() as u32, triangles.len() as u32] {
+    let start = std::time::Instant::now();
+    let n = positions.len();
+    let floats = n * 3 * if normals.is_some() { 2 } else { 1 };
+    let mut out = Vec::with_capacity(FRAME_HEADER_BYTES + floats * 4 + triangles.len() * 12);
+    let flags = if normals.is_some() { FLAG_NORMALS } else { 0 };
+    for v in [kind as u32, seq, n as u32, triangles.len() as u32] {
         out.extend_from_slice(&v.to_le_bytes());
     }
-    out.extend_from_slice(&solve_ms.to_le_bytes());
-    out.extend_from_slice(&[0u8; 12]);
-    for p in positions {
+    for v in [timing.solve_ms, timing.queue_ms, 0.0] {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    out.extend_from_slice(&flags.to_le_bytes());
+    out.extend_from_slice(&timing.received_at.to_le_bytes());
+    out.extend_from_slice(&0f64.to_le_bytes());
+    for p in positions.iter().chain(normals.unwrap_or(&[])) {
         for c in p {
             out.extend_from_slice(&(*c as f32).to_le_bytes());
         }
@@ -338,6 +397,21 @@ pub fn encode_binary(
             out.extend_from_slice(&i.to_le_bytes());
         }
     }
+    let encode_ms = start.elapsed().as_secs_f32() * 1e3;
+    out[24..28].copy_from_slice(&encode_ms.to_le_bytes());
+    out[40..48].copy_from_slice(&unix_ms().to_le_bytes());
+    out
+}
+
+/// Builds a [`BinaryKind::File`] message: a file for the browser to download.
+pub fn encode_file(name: &str, bytes: &[u8]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(FRAME_HEADER_BYTES + name.len() + bytes.len());
+    for v in [BinaryKind::File as u32, 0, name.len() as u32, bytes.len() as u32] {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    out.resize(FRAME_HEADER_BYTES, 0);
+    out.extend_from_slice(name.as_bytes());
+    out.extend_from_slice(bytes);
     out
 }
 
@@ -359,9 +433,24 @@ mod tests {
             serde_json::from_str(r#"{"type":"retarget","seq":3,"steps":[1,0,0]}"#).unwrap();
         assert_eq!(m, ClientMessage::Retarget { seq: 3, steps: [1, 0, 0] });
         assert!(serde_json::from_str::<ClientMessage>(r#"{"type":"nope"}"#).is_err());
-        let b = encode_binary(BinaryKind::Model, 7, &[[1.0, 2.0, 3.0]], &[[0, 0, 0]], 1.5);
+        let timing = FrameTiming { solve_ms: 1.5, queue_ms: 0.25, received_at: 1e12 };
+        let b = encode_binary(BinaryKind::Model, 7, &[[1.0, 2.0, 3.0]], None, &[[0, 0, 0]], timing);
         assert_eq!(b.len(), FRAME_HEADER_BYTES + 12 + 12);
         assert_eq!(u32::from_le_bytes(b[4..8].try_into().unwrap()), 7);
+        assert_eq!(f32::from_le_bytes(b[16..20].try_into().unwrap()), 1.5);
+        assert_eq!(f32::from_le_bytes(b[20..24].try_into().unwrap()), 0.25);
+        assert_eq!(f64::from_le_bytes(b[32..40].try_into().unwrap()), 1e12);
+        assert!(f64::from_le_bytes(b[40..48].try_into().unwrap()) > 1e12);
+        let b = encode_binary(BinaryKind::DeformFrame, 1, &[[1.0; 3]], Some(&[[0.0, 0.0, 1.0]]), &[], timing);
+        assert_eq!(u32::from_le_bytes(b[28..32].try_into().unwrap()), FLAG_NORMALS);
+        assert_eq!(
+            f32::from_le_bytes(b[FRAME_HEADER_BYTES + 20..FRAME_HEADER_BYTES + 24].try_into().unwrap()),
+            1.0
+        );
+        let f = encode_file("a.obj", b"v 0 0 0");
+        assert_eq!(u32::from_le_bytes(f[0..4].try_into().unwrap()), BinaryKind::File as u32);
+        assert_eq!(&f[FRAME_HEADER_BYTES..FRAME_HEADER_BYTES + 5], b"a.obj");
+        assert_eq!(&f[FRAME_HEADER_BYTES + 5..], b"v 0 0 0");
         let mut up = 3u32.to_le_bytes().to_vec();
         up.extend_from_slice(b"a.oRest");
         assert_eq!(decode_upload(&up), Some(("a.o".to_string(), &b"Rest"[..])));

@@ -3,13 +3,20 @@
 //! Per connection: a reader routes messages, a writer sends replies, and three workers run the
 //! requests on blocking threads: commands in order (opening, detection, ...; one at a time, each
 //! cancellable), drags and retargeting requests through a "latest value" slot so a slow solve
-//! drops stale frames instead of queueing them. When the socket closes the running job is
+//! drops stale frames instead of queueing them. Choosing handles (which builds the deformation
+//! session the first time) is cancellable too. When the socket closes the running jobs are
 //! cancelled, the workers stop and the session is dropped.
+//!
+//! Size limits: the WebSocket transport accepts messages up to twice the larger application
+//! limit, so a message over an application limit (but under that) is read and answered with an
+//! error naming the limit, on the same connection; only a message over the transport limit closes
+//! the connection (code 1009).
 
 use std::net::SocketAddr;
 use std::panic::AssertUnwindSafe;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
+use std::time::Instant;
 
 use axum::Router;
 use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade};
@@ -21,9 +28,9 @@ use futures_util::{SinkExt, StreamExt};
 use motif_core::geometry::Mat4;
 use tokio::sync::{Notify, mpsc};
 
-use crate::cancel::{CancelToken, Cancelled, JobProgress};
+use crate::cancel::{Cancelled, JobProgress, Jobs};
 use crate::error::{Result, StudioError};
-use crate::protocol::{ClientMessage, HandleSpec, Limits, ServerMessage, decode_upload};
+use crate::protocol::{ClientMessage, HandleSpec, Limits, ServerMessage, decode_upload, unix_ms};
 use crate::sandbox::Sandbox;
 use crate::session::{self, Out, Session, SessionCounter, Shared};
 
@@ -92,8 +99,14 @@ async fn ws_handler(
     if app.counter.get() >= app.limits.max_sessions {
         return (StatusCode::SERVICE_UNAVAILABLE, "too many open studio pages; close one").into_response();
     }
-    let max = app.limits.max_upload_bytes.max(app.limits.max_text_bytes) + 4096;
+    let max = transport_limit(&app.limits);
     ws.max_message_size(max).max_frame_size(max).on_upgrade(move |socket| connection(socket, app))
+}
+
+/// The WebSocket transport's message limit: twice the larger application limit, so oversized
+/// messages up to that size get an error reply instead of a closed connection.
+fn transport_limit(limits: &Limits) -> usize {
+    limits.max_upload_bytes.max(limits.max_text_bytes).saturating_mul(2).saturating_add(4096)
 }
 
 /// Sends replies to the writer task.
@@ -189,11 +202,15 @@ impl Pending for Option<(u32, [i32; 3])> {
     }
 }
 
+/// A pending drag: sequence number, transforms, normals wanted, when it arrived (monotonic and
+/// Unix ms).
+type PendingDrag = (u32, Vec<Mat4>, bool, (Instant, f64));
+
 /// Pending deformation requests, applied in this order: new handles, newest drag, release.
 #[derive(Default)]
 struct DeformQueue {
-    handles: Option<Vec<HandleSpec>>,
-    drag: Option<(u32, Vec<Mat4>)>,
+    handles: Option<(Vec<HandleSpec>, Vec<Option<Mat4>>)>,
+    drag: Option<PendingDrag>,
     release: bool,
 }
 
@@ -236,27 +253,35 @@ fn request_name(m: &ClientMessage) -> &'static str {
     }
 }
 
-/// Runs one command as a cancellable job.
-async fn run_command(
-    cmd: Command,
-    shared: &Shared,
+/// Runs `work` as a cancellable job: a cancel replies at once; the blocking thread stops at its
+/// next progress report (or finishes) and its result is not committed (see
+/// `JobProgress::check`).
+async fn run_job(
+    job: &str,
+    jobs: &Jobs,
     out: &Outbox,
-    current: &Mutex<Option<CancelToken>>,
-    closed: &AtomicBool,
+    work: impl FnOnce(&JobProgress) -> Result<Vec<Out>> + Send + 'static,
 ) {
+    let (token, _guard) = jobs.start();
+    let progress = JobProgress::new(job, out.0.clone(), token.clone());
+    let result = tokio::select! {
+        r = blocking(move || work(&progress), job) => Some(r),
+        _ = token.cancelled() => None,
+    };
+    match result {
+        None => out.text(&ServerMessage::Cancelled { job: job.to_string() }).await,
+        Some(r) => out.reply(r, job).await,
+    }
+}
+
+/// Runs one command as a cancellable job.
+async fn run_command(cmd: Command, shared: &Shared, out: &Outbox, jobs: &Jobs) {
     let job = match &cmd {
         Command::Message(m) => request_name(m),
         Command::Upload(..) => "upload",
     };
-    let token = CancelToken::new();
-    *current.lock().unwrap_or_else(|e| e.into_inner()) = Some(token.clone());
-    if closed.load(Ordering::SeqCst) {
-        token.cancel();
-    }
-    let progress = JobProgress::new(job, out.0.clone(), token.clone());
     let shared = shared.clone();
-    let work = move || -> Result<Vec<Out>> {
-        let p = &progress;
+    let work = move |p: &JobProgress| -> Result<Vec<Out>> {
         match cmd {
             Command::Upload(name, bytes) => session::upload(&shared, &name, &bytes, p),
             Command::Message(m) => match m {
@@ -267,8 +292,8 @@ async fn run_command(
                 ClientMessage::SaveAnnotation { path, overwrite } => {
                     session::save_annotation(&shared, &path, overwrite)
                 }
-                ClientMessage::Export { path, source, overwrite } => {
-                    session::export(&shared, &path, source, overwrite)
+                ClientMessage::Export { path, source, overwrite, download } => {
+                    session::export(&shared, &path, source, overwrite, download)
                 }
                 ClientMessage::Offsets => session::offsets(&shared, p),
                 ClientMessage::LoadDetections { path } => session::load_detections(&shared, &path),
@@ -277,29 +302,19 @@ async fn run_command(
             },
         }
     };
-    let result = tokio::select! {
-        r = blocking(work, job) => Some(r),
-        _ = token.cancelled() => None,
-    };
-    *current.lock().unwrap_or_else(|e| e.into_inner()) = None;
-    match result {
-        // The blocking thread stops at its next progress report (or finishes); its result is
-        // not committed (see `JobProgress::check`).
-        None => out.text(&ServerMessage::Cancelled { job: job.to_string() }).await,
-        Some(r) => out.reply(r, job).await,
-    }
+    run_job(job, jobs, out, work).await;
 }
 
-async fn deform_worker(shared: Shared, out: Outbox, slot: Arc<Latest<DeformQueue>>) {
+async fn deform_worker(shared: Shared, out: Outbox, slot: Arc<Latest<DeformQueue>>, jobs: Jobs) {
     while let Some(q) = slot.take().await {
-        if let Some(h) = q.handles {
+        if let Some((h, t)) = q.handles {
             let s = shared.clone();
-            out.reply(blocking(move || session::set_handles(&s, &h), "set_handles").await, "set_handles")
-                .await;
+            run_job("set_handles", &jobs, &out, move |p| session::set_handles(&s, &h, &t, p)).await;
         }
-        if let Some((seq, t)) = q.drag {
+        if let Some((seq, t, normals, received)) = q.drag {
             let s = shared.clone();
-            out.reply(blocking(move || session::drag(&s, seq, &t), "drag").await, "drag").await;
+            out.reply(blocking(move || session::drag(&s, seq, &t, normals, received), "drag").await, "drag")
+                .await;
         }
         if q.release {
             let s = shared.clone();
@@ -337,24 +352,23 @@ async fn connection(socket: WebSocket, app: Arc<App>) {
     })
     .await;
 
-    let current: Arc<Mutex<Option<CancelToken>>> = Arc::new(Mutex::new(None));
+    let jobs = Jobs::default();
     let (cmd_tx, mut cmd_rx) = mpsc::channel::<Command>(8);
-    let closed = Arc::new(AtomicBool::new(false));
     let deform_slot = Latest::<DeformQueue>::new();
     let retarget_slot = Latest::<Option<(u32, [i32; 3])>>::new();
     let commands = {
-        let (shared, out, current) = (shared.clone(), out.clone(), current.clone());
-        let closed = closed.clone();
+        let (shared, out, jobs) = (shared.clone(), out.clone(), jobs.clone());
         tokio::spawn(async move {
             while let Some(cmd) = cmd_rx.recv().await {
-                if closed.load(Ordering::SeqCst) {
+                if jobs.is_closed() {
                     continue; // the client left: queued requests are dropped, not run
                 }
-                run_command(cmd, &shared, &out, &current, &closed).await;
+                run_command(cmd, &shared, &out, &jobs).await;
             }
         })
     };
-    let deformer = tokio::spawn(deform_worker(shared.clone(), out.clone(), deform_slot.clone()));
+    let deformer =
+        tokio::spawn(deform_worker(shared.clone(), out.clone(), deform_slot.clone(), jobs.clone()));
     let retargeter = tokio::spawn(retarget_worker(shared.clone(), out.clone(), retarget_slot.clone()));
     drop(shared);
     if let Some(path) = &app.model {
@@ -422,17 +436,14 @@ async fn connection(socket: WebSocket, app: Arc<App>) {
             _ => continue,
         };
         match cmd {
-            ClientMessage::Cancel => {
-                if let Some(t) = current.lock().unwrap_or_else(|e| e.into_inner()).as_ref() {
-                    t.cancel();
-                }
-            }
-            ClientMessage::SetHandles { handles } => deform_slot.update(|q| {
-                q.handles = Some(handles);
+            ClientMessage::Cancel => jobs.cancel_all(),
+            ClientMessage::SetHandles { handles, transforms } => deform_slot.update(|q| {
+                q.handles = Some((handles, transforms));
                 q.drag = None;
             }),
-            ClientMessage::Drag { seq, transforms } => {
-                deform_slot.update(|q| q.drag = Some((seq, transforms)))
+            ClientMessage::Drag { seq, transforms, normals } => {
+                let received = (Instant::now(), unix_ms());
+                deform_slot.update(|q| q.drag = Some((seq, transforms, normals, received)))
             }
             ClientMessage::Release => deform_slot.update(|q| q.release = true),
             ClientMessage::Retarget { seq, steps } => retarget_slot.update(|q| *q = Some((seq, steps))),
@@ -445,11 +456,8 @@ async fn connection(socket: WebSocket, app: Arc<App>) {
         }
     }
 
-    // Disconnected: stop the running job, the workers, and with them the session.
-    closed.store(true, Ordering::SeqCst);
-    if let Some(t) = current.lock().unwrap_or_else(|e| e.into_inner()).take() {
-        t.cancel();
-    }
+    // Disconnected: stop the running jobs, the workers, and with them the session.
+    jobs.close();
     drop(cmd_tx);
     deform_slot.close();
     retarget_slot.close();

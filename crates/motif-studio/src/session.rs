@@ -9,7 +9,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Instant;
 
-use motif_core::geometry::{Mat4, dot, norm, scale};
+use motif_core::geometry::{IDENTITY4, Mat4, dot, norm, scale};
 use motif_core::io::{Format, Model, WriteOptions};
 use motif_core::procedural::{Region, SymmetryAnnotation};
 use motif_core::progress::{NoProgress, Progress};
@@ -23,7 +23,8 @@ use motif_retarget::retarget::{RetargetOptions, RetargetSession, orient_offsets}
 use crate::cancel::JobProgress;
 use crate::error::{Result, StudioError};
 use crate::protocol::{
-    BinaryKind, ClassSummary, ExportSource, GroupSummary, HandleSpec, ServerMessage, encode_binary,
+    BinaryKind, ClassSummary, ExportSource, FrameTiming, GroupSummary, HandleSpec, ServerMessage,
+    encode_binary, encode_file,
 };
 use crate::sandbox::{Sandbox, shorten};
 
@@ -68,9 +69,13 @@ impl Loaded {
 struct DeformState {
     session: DeformSession,
     maps: Option<SymmetryMaps>,
-    handles: usize,
+    /// The current handle set and the target of each handle (last solved, or as set).
+    specs: Vec<HandleSpec>,
+    transforms: Vec<Mat4>,
     solved: bool,
     last_solve_ms: f64,
+    /// The deformed mesh, for vertex normals (positions refreshed per frame that asks for them).
+    normals_mesh: TriMesh,
 }
 
 struct RetargetState {
@@ -107,6 +112,9 @@ pub struct Session {
     annotation: Option<SymmetryAnnotation>,
     deform: Option<DeformState>,
     retarget: Option<RetargetState>,
+    /// Bumped whenever the model or annotation changes, so a deformation session built without
+    /// the lock is installed only if it still matches.
+    generation: u64,
     _count: CountGuard,
 }
 
@@ -135,6 +143,7 @@ impl Session {
             annotation: None,
             deform: None,
             retarget: None,
+            generation: 0,
             _count: CountGuard(counter.clone()),
         }
     }
@@ -158,7 +167,14 @@ fn model_messages(l: &Loaded, annotation: Option<&SymmetryAnnotation>) -> Vec<Ou
             annotation: annotation.cloned(),
             warnings: l.model.warnings.clone(),
         }),
-        Out::Binary(encode_binary(BinaryKind::Model, 0, &v.positions, &l.model.triangles, 0.0)),
+        Out::Binary(encode_binary(
+            BinaryKind::Model,
+            0,
+            &v.positions,
+            None,
+            &l.model.triangles,
+            FrameTiming::default(),
+        )),
     ]
 }
 
@@ -177,6 +193,7 @@ fn install(
     s.annotation = annotation;
     s.deform = None;
     s.retarget = None;
+    s.generation += 1;
     out
 }
 
@@ -253,6 +270,7 @@ fn set_annotation(shared: &Shared, p: &JobProgress, annotation: SymmetryAnnotati
     s.annotation = Some(annotation);
     s.inputs.extend(input);
     s.deform = None;
+    s.generation += 1;
 }
 
 /// Detects global and partial symmetries of the current mesh.
@@ -356,62 +374,180 @@ fn handle_regions(handles: &[HandleSpec]) -> Result<Vec<Handle>> {
         .collect()
 }
 
-/// Chooses the handle set: builds the deformation session on first use (sampling, basis, lift),
-/// then factorises for these handles. An empty set returns to the rest shape.
-pub fn set_handles(shared: &Shared, handles: &[HandleSpec]) -> Result<Vec<Out>> {
+/// The target of each handle of a new set: given by the client; else the current target of an
+/// equal handle of the previous set; else the rigid motion that best fits the region's vertices
+/// from the rest shape to the current shape (`motif_core::icp::fit_rigid`), so a handle added
+/// after a drag holds the part it grabs where it is instead of pulling it back to rest.
+fn handle_targets(
+    d: &DeformState,
+    mesh: &TriMesh,
+    handles: &[HandleSpec],
+    regions: &[Handle],
+    given: &[Option<Mat4>],
+) -> Vec<Mat4> {
+    let current = if d.solved { d.session.positions() } else { d.session.rest_positions() };
+    let tolerance = 1e-9 * d.session.stats().diagonal;
+    let mut used = vec![false; d.specs.len()];
+    handles
+        .iter()
+        .zip(regions)
+        .enumerate()
+        .map(|(i, (spec, region))| {
+            if let Some(Some(m)) = given.get(i) {
+                return *m;
+            }
+            if let Some(j) = (0..d.specs.len()).find(|&j| !used[j] && d.specs[j] == *spec) {
+                used[j] = true;
+                if let Some(m) = d.transforms.get(j) {
+                    return *m;
+                }
+            }
+            let vertices = region.region.vertex_indices(mesh, tolerance);
+            let rest: Vec<Point3> = vertices.iter().map(|&v| mesh.positions[v]).collect();
+            let now: Vec<Point3> = vertices.iter().map(|&v| current[v]).collect();
+            if rest == now {
+                return IDENTITY4; // exactly, not a fit's rounding
+            }
+            motif_core::icp::fit_rigid(&rest, &now).unwrap_or(IDENTITY4)
+        })
+        .collect()
+}
+
+/// Chooses the handle set: builds the deformation session on first use (sampling, basis, lift;
+/// cancellable through `p`, without holding the session's lock), then factorises for these
+/// handles and solves once for their targets (see [`ClientMessage::SetHandles`]), so the shape
+/// stays as it was. An empty set returns to the rest shape.
+///
+/// [`ClientMessage::SetHandles`]: crate::protocol::ClientMessage::SetHandles
+pub fn set_handles(
+    shared: &Shared,
+    handles: &[HandleSpec],
+    given: &[Option<Mat4>],
+    p: &JobProgress,
+) -> Result<Vec<Out>> {
     let regions = handle_regions(handles)?;
-    let mut s = lock(shared);
+    if given.len() > handles.len() {
+        return Err(StudioError::BadMessage(format!(
+            "{} transforms for {} handles",
+            given.len(),
+            handles.len()
+        )));
+    }
     if regions.is_empty() {
+        let mut s = lock(shared);
         if let Some(d) = s.deform.as_mut() {
             d.solved = false;
-            d.handles = 0;
+            d.specs.clear();
+            d.transforms.clear();
         }
         return Ok(Vec::new());
     }
-    let loaded = s.loaded()?;
+    let (loaded, annotation, seed, generation, built) = {
+        let s = lock(shared);
+        (s.loaded()?, s.annotation.clone(), s.seed, s.generation, s.deform.is_some())
+    };
     let mesh = loaded.mesh()?;
-    let t = Instant::now();
     let mut session_ms = 0.0;
-    if s.deform.is_none() {
-        let annotation = s.annotation.clone().unwrap_or_default();
+    if !built {
+        // Seconds on a 100k-vertex mesh: built outside the lock, stoppable at each stage.
+        let t = Instant::now();
         let mut options = DeformOptions::default();
-        options.sampling.seed = s.seed;
-        let session = DeformSession::new(mesh, &annotation, &options)?;
+        options.sampling.seed = seed;
+        let session = DeformSession::with_progress(mesh, &annotation.unwrap_or_default(), &options, p)?;
         session_ms = ms_since(t);
-        s.deform = Some(DeformState { session, maps: None, handles: 0, solved: false, last_solve_ms: 0.0 });
+        p.check();
+        let mut s = lock(shared);
+        if s.generation != generation {
+            return Err(StudioError::NotReady(
+                "the model or annotation changed while the deformation session was built: pick the handles again"
+                    .to_string(),
+            ));
+        }
+        if s.deform.is_none() {
+            s.deform = Some(DeformState {
+                session,
+                maps: None,
+                specs: Vec::new(),
+                transforms: Vec::new(),
+                solved: false,
+                last_solve_ms: 0.0,
+                normals_mesh: mesh.clone(),
+            });
+        }
+    }
+    p.check();
+    let mut s = lock(shared);
+    if s.generation != generation {
+        return Err(StudioError::NotReady("the model changed: pick the handles again".to_string()));
     }
     let Some(d) = s.deform.as_mut() else { return Err(StudioError::Internal("set_handles".to_string())) };
+    let targets = handle_targets(d, mesh, handles, &regions, given);
+    d.session.set_handles(&regions).inspect_err(|_| {
+        d.solved = false;
+        d.specs.clear();
+        d.transforms.clear();
+    })?;
+    d.specs = handles.to_vec();
+    d.transforms = targets.clone();
     d.solved = false;
-    d.handles = 0;
-    d.session.set_handles(&regions)?;
-    d.handles = regions.len();
     let st = d.session.stats();
     let samples = d.session.handle_samples().iter().map(Vec::len).collect();
-    Ok(vec![Out::Text(ServerMessage::Handles {
+    let reply = Out::Text(ServerMessage::Handles {
         handles: regions.len(),
         samples,
         total_samples: st.samples,
         dof: st.dof,
         prefactor_ms: st.timings.prefactor_ms,
         session_ms,
-    })])
+        transforms: targets.clone(),
+    });
+    let frame = solve_frame(d, 0, &targets, false, FrameTiming::default())?;
+    Ok(vec![reply, Out::Binary(frame)])
 }
 
-/// Solves one drag frame and encodes the deformed positions.
-pub fn drag(shared: &Shared, seq: u32, transforms: &[Mat4]) -> Result<Vec<Out>> {
+/// Solves for `transforms` and encodes the frame (with vertex normals when asked).
+fn solve_frame(
+    d: &mut DeformState,
+    seq: u32,
+    transforms: &[Mat4],
+    normals: bool,
+    mut timing: FrameTiming,
+) -> Result<Vec<u8>> {
+    let t = Instant::now();
+    d.session.solve(transforms)?;
+    let solve_ms = ms_since(t);
+    d.solved = true;
+    d.last_solve_ms = solve_ms;
+    d.transforms = transforms.to_vec();
+    timing.solve_ms = solve_ms as f32;
+    let positions = d.session.positions();
+    let normals = if normals {
+        d.normals_mesh.positions.copy_from_slice(positions);
+        Some(d.normals_mesh.vertex_normals())
+    } else {
+        None
+    };
+    Ok(encode_binary(BinaryKind::DeformFrame, seq, positions, normals.as_deref(), &[], timing))
+}
+
+/// Solves one drag frame and encodes the deformed positions. `received` is when the request
+/// arrived (for the frame's timing fields).
+pub fn drag(
+    shared: &Shared,
+    seq: u32,
+    transforms: &[Mat4],
+    normals: bool,
+    received: (Instant, f64),
+) -> Result<Vec<Out>> {
     let mut s = lock(shared);
     let d = s
         .deform
         .as_mut()
-        .filter(|d| d.handles > 0)
+        .filter(|d| !d.specs.is_empty())
         .ok_or_else(|| StudioError::NotReady("pick handles before dragging".to_string()))?;
-    let t = Instant::now();
-    let positions = d.session.solve(transforms)?;
-    let solve_ms = ms_since(t);
-    let frame = encode_binary(BinaryKind::DeformFrame, seq, positions, &[], solve_ms as f32);
-    d.solved = true;
-    d.last_solve_ms = solve_ms;
-    Ok(vec![Out::Binary(frame)])
+    let timing =
+        FrameTiming { queue_ms: ms_since(received.0) as f32, received_at: received.1, solve_ms: 0.0 };
+    Ok(vec![Out::Binary(solve_frame(d, seq, transforms, normals, timing)?)])
 }
 
 /// Measures the current deformation: symmetry residual (eq. 3.2) and handle fit.
@@ -446,7 +582,13 @@ pub fn release(shared: &Shared) -> Result<Vec<Out>> {
 
 /// Writes the deformed (or retargeted) model and, for the deformed one, its annotation as
 /// `STEM.sym.json`.
-pub fn export(shared: &Shared, path: &str, source: ExportSource, overwrite: bool) -> Result<Vec<Out>> {
+pub fn export(
+    shared: &Shared,
+    path: &str,
+    source: ExportSource,
+    overwrite: bool,
+    download: bool,
+) -> Result<Vec<Out>> {
     let s = lock(shared);
     let loaded = s.loaded()?;
     let file = s.sandbox.resolve_write(path, &s.inputs)?;
@@ -483,7 +625,19 @@ pub fn export(shared: &Shared, path: &str, source: ExportSource, overwrite: bool
             written.push(s.sandbox.display(&file));
         }
     }
-    Ok(vec![Out::Text(ServerMessage::Saved { paths: written })])
+    let mut out = Vec::new();
+    if download {
+        // The bytes just written, read back through the sandbox, for the browser to save.
+        for w in &written {
+            let f = s.sandbox.resolve_read(w)?;
+            let bytes = std::fs::read(&f)
+                .map_err(|source| StudioError::Io { what: format!("reading {w}"), source })?;
+            let name = f.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_else(|| w.clone());
+            out.push(Out::Binary(encode_file(&name, &bytes)));
+        }
+    }
+    out.insert(0, Out::Text(ServerMessage::Saved { paths: written }));
+    Ok(out)
 }
 
 /// Whole cells of `mesh` along each offset: the extent along the offset's direction divided by
@@ -567,8 +721,9 @@ pub fn retarget(shared: &Shared, seq: u32, steps: [i32; 3]) -> Result<Vec<Out>> 
             BinaryKind::Retargeted,
             seq,
             &res.mesh.positions,
+            None,
             &res.mesh.triangles,
-            ms as f32,
+            FrameTiming { solve_ms: ms as f32, ..Default::default() },
         )),
     ];
     r.last = Some(res.mesh);

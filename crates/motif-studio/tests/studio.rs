@@ -111,6 +111,31 @@ fn positions(frame: &[u8]) -> Vec<f32> {
     frame[FRAME_HEADER_BYTES..].chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect()
 }
 
+/// The next binary message, which must be a deformation frame with sequence number `seq`.
+async fn next_frame(ws: &mut Ws, seq: u32) -> Vec<f32> {
+    let frame = match next(ws).await {
+        Reply::Binary(b) => b,
+        Reply::Text(m) => panic!("expected a frame, got {m:?}"),
+        Reply::Closed(_) => panic!("closed"),
+    };
+    assert_eq!(u32::from_le_bytes(frame[0..4].try_into().unwrap()), 2);
+    assert_eq!(u32::from_le_bytes(frame[4..8].try_into().unwrap()), seq);
+    positions(&frame)
+}
+
+/// The `handles` reply (its transforms); the frame that follows it is consumed and returned.
+async fn handles_reply(ws: &mut Ws, count: usize) -> (Vec<[[f64; 4]; 4]>, Vec<f32>) {
+    let transforms = match next_text(ws).await {
+        ServerMessage::Handles { handles, samples, transforms, .. } => {
+            assert_eq!(handles, count);
+            assert!(samples.iter().all(|&k| k > 0), "{samples:?}");
+            transforms
+        }
+        other => panic!("expected handles, got {other:?}"),
+    };
+    (transforms, next_frame(ws, 0).await)
+}
+
 fn translation(t: [f64; 3]) -> [[f64; 4]; 4] {
     [[1.0, 0.0, 0.0, t[0]], [0.0, 1.0, 0.0, t[1]], [0.0, 0.0, 1.0, t[2]], [0.0, 0.0, 0.0, 1.0]]
 }
@@ -189,8 +214,14 @@ async fn hostile_messages_are_answered_and_the_server_keeps_serving() {
         }
         other => panic!("expected the uploaded model, got {other:?}"),
     }
-    // Over the protocol limit: that connection is closed with 1009, the server keeps serving.
-    let huge = vec![0u8; TEST_LIMITS.max_upload_bytes + 64 * 1024];
+    // Over the upload limit: an error naming the limit, and the same connection keeps working.
+    let over = upload("big.obj", &vec![b' '; TEST_LIMITS.max_upload_bytes + 64 * 1024]);
+    ws.send(Message::Binary(over.into())).await.unwrap();
+    expect_error(next_text(&mut ws).await, &format!("the limit is {} bytes", TEST_LIMITS.max_upload_bytes));
+    assert_eq!(open_example(&mut ws, "fan").await, n);
+    // Over the transport limit (twice the upload limit): that connection is closed with 1009, the
+    // server keeps serving.
+    let huge = vec![0u8; 2 * TEST_LIMITS.max_upload_bytes + 64 * 1024];
     let _ = ws.send(Message::Binary(huge.into())).await;
     loop {
         match next(&mut ws).await {
@@ -300,23 +331,12 @@ async fn deform_client(url: String, lift: f64) -> f64 {
             {"balls": [{"center": [0.3, 0.0, 0.0], "radius": 0.04}]}]}),
     )
     .await;
-    match next_text(&mut ws).await {
-        ServerMessage::Handles { handles, samples, .. } => {
-            assert_eq!(handles, 2);
-            assert!(samples.iter().all(|&k| k > 0));
-        }
-        other => panic!("expected handles, got {other:?}"),
-    }
+    let (targets, rest) = handles_reply(&mut ws, 2).await;
+    assert_eq!(targets, vec![translation([0.0; 3]); 2], "new handles start where they are");
+    assert_eq!(rest.len(), 3 * n);
     let transforms = [translation([0.0; 3]), translation([0.0, 0.0, lift])];
     send(&mut ws, json!({"type": "drag", "seq": 7, "transforms": transforms})).await;
-    let frame = match next(&mut ws).await {
-        Reply::Binary(b) => b,
-        Reply::Text(m) => panic!("expected a frame, got {m:?}"),
-        Reply::Closed(_) => panic!("closed"),
-    };
-    assert_eq!(u32::from_le_bytes(frame[0..4].try_into().unwrap()), 2);
-    assert_eq!(u32::from_le_bytes(frame[4..8].try_into().unwrap()), 7);
-    let p = positions(&frame);
+    let p = next_frame(&mut ws, 7).await;
     assert_eq!(p.len(), 3 * n);
     let ex = motif_core::procedural::generate("fan", 1).unwrap();
     let moved = ex
@@ -464,4 +484,117 @@ fn bind_refuses_a_missing_root_and_a_model_outside_it() {
     };
     assert!(rt.block_on(Studio::bind(outside)).is_err());
     let _ = Path::new(".");
+}
+
+fn max_difference(a: &[f32], b: &[f32]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (x - y).abs() as f64).fold(0.0, f64::max)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn handles_added_after_a_drag_keep_the_deformation() {
+    let s = start().await;
+    let mut ws = connect(&s.url).await;
+    let n = open_example(&mut ws, "fan").await;
+    let hub = json!({"balls": [{"center": [0.0, 0.0, 0.0], "radius": 0.06}]});
+    let tip = json!({"balls": [{"center": [0.3, 0.0, 0.0], "radius": 0.04}]});
+    let mid = json!({"balls": [{"center": [0.2, 0.0, 0.0], "radius": 0.03}]});
+    send(&mut ws, json!({"type": "set_handles", "handles": [hub, tip]})).await;
+    let (_, rest) = handles_reply(&mut ws, 2).await;
+    let lift = 0.05;
+    let moved = translation([0.0, 0.0, lift]);
+    send(&mut ws, json!({"type": "drag", "seq": 1, "transforms": [translation([0.0; 3]), moved]})).await;
+    let dragged = next_frame(&mut ws, 1).await;
+    assert_eq!(dragged.len(), 3 * n);
+    assert!(max_difference(&dragged, &rest) > 0.9 * lift, "the drag moved the blade");
+    // A third handle on the bent blade, no targets given: the earlier handles keep theirs, the
+    // new one holds the blade where it is now, and the shape stays (the snap-back bug pulled
+    // the new handle's part back to rest).
+    send(&mut ws, json!({"type": "set_handles", "handles": [hub, tip, mid]})).await;
+    let (targets, kept) = handles_reply(&mut ws, 3).await;
+    assert_eq!(targets[0], translation([0.0; 3]));
+    assert_eq!(targets[1], moved);
+    assert!(
+        targets[2][2][3] > 0.3 * lift,
+        "the new handle's target follows the bent blade: {:?}",
+        targets[2]
+    );
+    let drift = max_difference(&kept, &dragged);
+    // What the snap-back bug did: the new handle pinned at its rest position.
+    let identity = translation([0.0; 3]);
+    send(
+        &mut ws,
+        json!({"type": "set_handles", "handles": [hub, tip, mid], "transforms": [identity, moved, identity]}),
+    )
+    .await;
+    let (_, snapped) = handles_reply(&mut ws, 3).await;
+    let snap = max_difference(&snapped, &dragged);
+    assert!(
+        drift < 0.25 * lift && drift < 0.3 * snap,
+        "adding a handle changed the shape by {drift} (lift {lift}; pinning it at rest changes it by {snap})"
+    );
+    // Targets given by the client (undo to the rest pose) are used as given.
+    send(&mut ws, json!({"type": "set_handles", "handles": [hub, tip], "transforms": [identity, identity]}))
+        .await;
+    let (targets, back) = handles_reply(&mut ws, 2).await;
+    assert_eq!(targets, vec![identity; 2]);
+    assert!(max_difference(&back, &rest) < 1e-6, "undo to rest: {}", max_difference(&back, &rest));
+    // Too many targets for the handles: an error.
+    send(&mut ws, json!({"type": "set_handles", "handles": [hub], "transforms": [identity, identity]})).await;
+    expect_error(next_text(&mut ws).await, "2 transforms for 1 handles");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn building_the_deformation_session_can_be_cancelled() {
+    let s = start().await;
+    let mut ws = connect(&s.url).await;
+    // 100k vertices: building its session takes seconds, the cancel arrives within milliseconds
+    // and stops it at the next stage.
+    open_example(&mut ws, "windmill_100k").await;
+    send(
+        &mut ws,
+        json!({"type": "set_handles", "handles": [{"balls": [{"center": [0.0, 1.0, 0.0], "radius": 0.3}]}]}),
+    )
+    .await;
+    send(&mut ws, json!({"type": "cancel"})).await;
+    match next_text(&mut ws).await {
+        ServerMessage::Cancelled { job } => assert_eq!(job, "set_handles"),
+        other => panic!("expected the session build to be cancelled, got {other:?}"),
+    }
+    // Nothing was installed: dragging is refused, and the session works for a new model.
+    send(&mut ws, json!({"type": "drag", "seq": 1, "transforms": [translation([0.0; 3])]})).await;
+    expect_error(next_text(&mut ws).await, "pick handles");
+    open_example(&mut ws, "fan").await;
+    send(
+        &mut ws,
+        json!({"type": "set_handles", "handles": [{"balls": [{"center": [0.0, 0.0, 0.0], "radius": 0.06}]}]}),
+    )
+    .await;
+    handles_reply(&mut ws, 1).await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn exports_can_be_sent_back_for_download() {
+    let s = start().await;
+    let mut ws = connect(&s.url).await;
+    let n = open_example(&mut ws, "fan").await;
+    send(&mut ws, json!({"type": "export", "path": "fan-out.ply", "download": true})).await;
+    match next_text(&mut ws).await {
+        ServerMessage::Saved { paths } => assert_eq!(paths[0], "fan-out.ply"),
+        other => panic!("expected saved, got {other:?}"),
+    }
+    let file = match next(&mut ws).await {
+        Reply::Binary(b) => b,
+        _ => panic!("expected the file"),
+    };
+    assert_eq!(u32::from_le_bytes(file[0..4].try_into().unwrap()), 4);
+    let name_len = u32::from_le_bytes(file[8..12].try_into().unwrap()) as usize;
+    let len = u32::from_le_bytes(file[12..16].try_into().unwrap()) as usize;
+    let name = &file[FRAME_HEADER_BYTES..FRAME_HEADER_BYTES + name_len];
+    assert_eq!(name, b"fan-out.ply");
+    let bytes = &file[FRAME_HEADER_BYTES + name_len..];
+    assert_eq!(bytes.len(), len);
+    assert_eq!(bytes, std::fs::read(s.root.join("fan-out.ply")).unwrap().as_slice());
+    let back = motif_core::io::read_from_bytes(bytes, motif_core::io::Format::Ply, Path::new("fan-out.ply"))
+        .unwrap();
+    assert_eq!(back.vertices.len(), n);
 }

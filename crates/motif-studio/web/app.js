@@ -13,15 +13,30 @@ const state = {
   maxDisplacement: 0, lastFrameMs: null, medianFrameMs: null, lastSolveMs: null, framesReceived: 0,
   frameTimes: [], frameLog: [], annotation: null, offsets: null, cells: null, totalCells: null, retargetVersion: 0,
   retargetVertices: 0, detections: null, busy: null, progress: null, saved: [], errors: [], released: 0,
-  undo: 0, redo: 0,
+  undo: 0, redo: 0, downloads: [], renderer: null, handleTransforms: [], progressLog: [],
 };
 window.motif = { state };
 
 // ---------------------------------------------------------------------------------------------
 // Scene
 const viewport = $('viewport');
-const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+// A software WebGL (SwiftShader, llvmpipe: a machine without a usable GPU) rasterises every
+// multisample on the CPU: 4x MSAA made a 200k-triangle frame ~3x slower there. Antialias only on
+// a hardware renderer.
+function rendererName() {
+  const gl = document.createElement('canvas').getContext('webgl2');
+  if (!gl) return '';
+  const dbg = gl.getExtension('WEBGL_debug_renderer_info');
+  const name = dbg ? gl.getParameter(dbg.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER);
+  const lose = gl.getExtension('WEBGL_lose_context');
+  if (lose) lose.loseContext();
+  return String(name);
+}
+const gpuName = rendererName();
+const software = /swiftshader|llvmpipe|softpipe|software/i.test(gpuName);
+const renderer = new THREE.WebGLRenderer({ antialias: !software });
 renderer.setPixelRatio(1);
+state.renderer = { name: gpuName, software, antialias: !software };
 viewport.appendChild(renderer.domElement);
 const scene = new THREE.Scene();
 scene.background = new THREE.Color(0xeef0f4);
@@ -37,15 +52,31 @@ const gizmoTarget = new THREE.Object3D();
 scene.add(gizmoTarget);
 scene.add(gizmo.getHelper());
 
-const material = new THREE.MeshStandardMaterial({ color: 0xb9c3d6, roughness: 0.7, metalness: 0.05, flatShading: true, side: THREE.DoubleSide });
+// Lambert shading costs ~20% less per frame than the physically based material on a software
+// renderer (measured on the 215k-triangle windmill); a GPU draws either in about a millisecond.
+const material = software
+  ? new THREE.MeshLambertMaterial({ color: 0xb9c3d6, flatShading: true, side: THREE.DoubleSide })
+  : new THREE.MeshStandardMaterial({ color: 0xb9c3d6, roughness: 0.7, metalness: 0.05, flatShading: true, side: THREE.DoubleSide });
 const pointMaterial = new THREE.PointsMaterial({ size: 3, sizeAttenuation: false, color: 0x6d7890 });
+// `geometry` holds the model on the CPU (picking, bounds, overlays). A mesh is drawn from
+// `drawGeometry`, whose positions (and normals) live in WebGL buffers this page owns: a drag
+// frame is one bufferSubData of the new positions, no geometry rebuild, no CPU normals.
 let geometry = null, object = null, restPositions = null;
+let drawGeometry = null, gpuPositions = null, gpuNormals = null, pickMesh = null;
+const gl = renderer.getContext();
+const syncPixel = new Uint8Array(4);
+// Waits until the GPU has executed everything issued so far (finish() does not wait in Chrome;
+// reading a pixel does), so the frame-time readout measures drawn frames, not queued commands.
+function gpuSync() { gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, syncPixel); }
 let retargetObject = null;
 const overlays = { bbox: new THREE.Group(), symmetry: new THREE.Group(), detections: new THREE.Group(), handles: new THREE.Group(), offsets: new THREE.Group() };
 Object.values(overlays).forEach((g) => scene.add(g));
 
 let renderQueued = false;
 function requestRender() {
+  // While a handle is dragged, deformation frames draw everything (gizmo included) when they land:
+  // a render per mouse move as well would double the GPU work (and its queue delays the frames).
+  if (inFlight || (gizmo.dragging && handles.length)) return;
   if (renderQueued) return;
   renderQueued = true;
   requestAnimationFrame(() => { renderQueued = false; renderer.render(scene, camera); });
@@ -62,14 +93,13 @@ orbit.addEventListener('change', requestRender);
 gizmo.addEventListener('change', requestRender);
 gizmo.addEventListener('dragging-changed', (e) => {
   orbit.enabled = !e.value;
-  if (!e.value) endDrag();
+  if (!e.value) { endDrag(); requestRender(); }
 });
 gizmo.addEventListener('objectChange', onGizmoMove);
 
 // ---------------------------------------------------------------------------------------------
 // Connection
 let ws = null;
-let lastRecv = 0;
 let pendingBinary = [];
 function connect() {
   ws = new WebSocket(`ws://${location.host}/ws`);
@@ -81,7 +111,7 @@ function connect() {
     if (params.get('open')) send({ type: 'open', path: params.get('open') });
   };
   ws.onclose = () => { state.connected = false; message('connection closed; reload the page', true); };
-  ws.onmessage = (ev) => { lastRecv = performance.now(); return typeof ev.data === 'string' ? onText(JSON.parse(ev.data)) : onBinary(ev.data); };
+  ws.onmessage = (ev) => (typeof ev.data === 'string' ? onText(JSON.parse(ev.data)) : onBinary(ev.data, performance.now()));
 }
 function send(m) {
   if (ws && ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify(m));
@@ -109,37 +139,59 @@ function onText(m) {
     case 'model': onModel(m); break;
     case 'progress':
       state.progress = m;
+      state.progressLog.push(m);
+      if (state.progressLog.length > 200) state.progressLog.shift();
       $('progress').textContent = `${m.job}: ${m.stage}` + (m.total ? ` ${m.done}/${m.total}` : m.done ? ` ${m.done}` : '');
       break;
-    case 'cancelled': setBusy(null); message(`${m.job} cancelled`); break;
+    case 'cancelled':
+      setBusy(null);
+      message(`${m.job} cancelled`);
+      if (m.job === 'set_handles') handlesFailed();
+      break;
     case 'annotation': setBusy(null); onAnnotation(m); break;
     case 'saved': setBusy(null); state.saved.push(...m.paths); message(`wrote ${m.paths.join(', ')}`); break;
-    case 'handles':
-      state.handles = m.handles;
-      state.handleSamples = m.samples;
-      $('deform-info').textContent = `${m.handles} handle(s), samples ${m.samples.join(' / ')} of ${m.total_samples}, ${m.dof} DoF\n` +
-        `precompute ${m.session_ms.toFixed(0)} ms, factorisation ${m.prefactor_ms.toFixed(1)} ms`;
-      break;
+    case 'handles': onHandles(m); break;
     case 'deformed': onDeformed(m); break;
     case 'offsets': setBusy(null); onOffsets(m); break;
     case 'retargeted': pendingBinary.push(m); break;
     case 'detections': setBusy(null); onDetections(m); break;
     case 'error':
-      if (m.request === 'drag') { inFlight = false; }
-      if (m.request !== 'drag' && m.request !== 'release' && m.request !== 'retarget' && m.request !== 'set_handles') setBusy(null);
+      if (m.request === 'drag') { inFlight = false; requestRender(); }
+      if (m.request !== 'drag' && m.request !== 'release' && m.request !== 'retarget') setBusy(null);
       message(m.message, true);
+      if (m.request === 'set_handles') handlesFailed();
       break;
   }
 }
 
-function onBinary(buf) {
-  const h = new DataView(buf, 0, 32);
-  const kind = h.getUint32(0, true), seq = h.getUint32(4, true), nv = h.getUint32(8, true), nt = h.getUint32(12, true);
-  const solveMs = h.getFloat32(16, true);
-  const pos = new Float32Array(buf, 32, nv * 3);
-  if (kind === 1) setModelGeometry(pos, nt ? new Uint32Array(buf, 32 + nv * 12, nt * 3) : null);
-  else if (kind === 2) onFrame(seq, pos, solveMs);
-  else if (kind === 3) onRetargetedMesh(pos, new Uint32Array(buf, 32 + nv * 12, nt * 3), pendingBinary.shift());
+// Binary messages: a 48-byte header (protocol.rs), then positions [, normals] [, triangles].
+const HEADER = 48;
+function onBinary(buf, tRecv) {
+  const h = new DataView(buf, 0, HEADER);
+  const head = {
+    kind: h.getUint32(0, true), seq: h.getUint32(4, true), nv: h.getUint32(8, true), nt: h.getUint32(12, true),
+    solveMs: h.getFloat32(16, true), queueMs: h.getFloat32(20, true), encodeMs: h.getFloat32(24, true),
+    flags: h.getUint32(28, true), receivedAt: h.getFloat64(32, true), sentAt: h.getFloat64(40, true),
+  };
+  const { kind, nv, nt } = head;
+  if (kind === 4) { onFile(new TextDecoder().decode(new Uint8Array(buf, HEADER, nv)), new Uint8Array(buf, HEADER + nv, nt)); return; }
+  const pos = new Float32Array(buf, HEADER, nv * 3);
+  const after = HEADER + nv * 12 * ((head.flags & 1) ? 2 : 1);
+  if (kind === 1) setModelGeometry(pos, nt ? new Uint32Array(buf, after, nt * 3) : null);
+  else if (kind === 2) onFrame(head, pos, (head.flags & 1) ? new Float32Array(buf, HEADER + nv * 12, nv * 3) : null, tRecv);
+  else if (kind === 3) onRetargetedMesh(pos, new Uint32Array(buf, after, nt * 3), pendingBinary.shift());
+}
+
+// An exported file: saved by the browser (Blob + a download link).
+function onFile(name, bytes) {
+  const url = URL.createObjectURL(new Blob([bytes], { type: 'application/octet-stream' }));
+  const a = document.createElement('a');
+  a.href = url; a.download = name; a.style.display = 'none';
+  document.body.append(a);
+  a.click();
+  a.remove();
+  setTimeout(() => URL.revokeObjectURL(url), 10000);
+  state.downloads.push(name);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -154,6 +206,7 @@ function onModel(m) {
     `size ${size.map((v) => v.toPrecision(3)).join(' × ')} (diagonal ${m.diagonal.toPrecision(3)})` +
     (m.warnings.length ? `\n${m.warnings.join('\n')}` : '');
   handles = []; undoStack = []; redoStack = []; updateUndo();
+  inFlight = wantFrame = handlesPending = undoOnHandles = releaseWanted = false; sentAt.clear();
   clearGroup(overlays.detections); clearGroup(overlays.offsets); clearGroup(overlays.symmetry); clearGroup(overlays.handles);
   $('steps').replaceChildren(); $('resize-info').textContent = ''; $('detections-info').textContent = ''; $('deform-info').textContent = '';
   $('symmetry-info').textContent = '';
@@ -164,21 +217,34 @@ function onModel(m) {
 
 function setModelGeometry(pos, index) {
   if (object) { scene.remove(object); geometry.dispose(); }
+  if (drawGeometry) { drawGeometry.dispose(); gl.deleteBuffer(gpuPositions); gl.deleteBuffer(gpuNormals); drawGeometry = gpuPositions = gpuNormals = null; }
   geometry = new THREE.BufferGeometry();
-  const attr = new THREE.BufferAttribute(new Float32Array(pos), 3);
-  attr.setUsage(THREE.DynamicDrawUsage);
-  geometry.setAttribute('position', attr);
+  geometry.setAttribute('position', new THREE.BufferAttribute(new Float32Array(pos), 3));
   restPositions = new Float32Array(pos);
+  geometry.computeBoundingBox();
+  geometry.computeBoundingSphere();
   if (index) {
     geometry.setIndex(new THREE.BufferAttribute(new Uint32Array(index), 1));
     geometry.computeVertexNormals();
-    object = new THREE.Mesh(geometry, material);
+    const nv = pos.length / 3;
+    gpuPositions = gl.createBuffer();
+    gl.bindBuffer(gl.ARRAY_BUFFER, gpuPositions);
+    gl.bufferData(gl.ARRAY_BUFFER, restPositions, gl.DYNAMIC_DRAW);
+    gpuNormals = gl.createBuffer();
+    gl.bindBuffer(gl.ARRAY_BUFFER, gpuNormals);
+    gl.bufferData(gl.ARRAY_BUFFER, geometry.getAttribute('normal').array, gl.DYNAMIC_DRAW);
+    drawGeometry = new THREE.BufferGeometry();
+    drawGeometry.setAttribute('position', new THREE.GLBufferAttribute(gpuPositions, gl.FLOAT, 3, 4, nv));
+    drawGeometry.setAttribute('normal', new THREE.GLBufferAttribute(gpuNormals, gl.FLOAT, 3, 4, nv));
+    drawGeometry.setIndex(geometry.index);
+    drawGeometry.boundingSphere = geometry.boundingSphere.clone();
+    pickMesh = new THREE.Mesh(geometry, material);
+    object = new THREE.Mesh(drawGeometry, material);
+    object.frustumCulled = false; // the bounds change while dragging; the model is always in view
   } else {
     object = new THREE.Points(geometry, pointMaterial);
   }
   scene.add(object);
-  geometry.computeBoundingBox();
-  geometry.computeBoundingSphere();
   frameCamera();
   drawBox();
   state.meshVersion++;
@@ -222,10 +288,18 @@ function clearGroup(g) {
   }
 }
 
+// Flat shading takes face normals from screen-space derivatives in the shader; smooth shading
+// uses vertex normals, sent by the server with every drag frame while it is on.
+function uploadCpuNormals() {
+  if (!geometry || !geometry.index || !gpuNormals) return;
+  geometry.computeVertexNormals();
+  gl.bindBuffer(gl.ARRAY_BUFFER, gpuNormals);
+  gl.bufferSubData(gl.ARRAY_BUFFER, 0, geometry.getAttribute('normal').array);
+}
 $('shade-flat').onchange = $('shade-smooth').onchange = () => {
   material.flatShading = $('shade-flat').checked;
   material.needsUpdate = true;
-  if (geometry && geometry.index) geometry.computeVertexNormals();
+  if (!material.flatShading) uploadCpuNormals();
   requestRender();
 };
 $('wireframe').onchange = () => { material.wireframe = $('wireframe').checked; requestRender(); };
@@ -325,6 +399,7 @@ function onAnnotation(m) {
   overlays.symmetry.visible = $('show-symmetry').checked;
   // A new annotation means a new deformation session on the server.
   handles = []; clearGroup(overlays.handles); gizmo.detach(); state.handles = 0;
+  inFlight = wantFrame = handlesPending = undoOnHandles = false; sentAt.clear();
   requestRender();
 }
 $('show-symmetry').onchange = () => { overlays.symmetry.visible = $('show-symmetry').checked; requestRender(); };
@@ -415,16 +490,58 @@ function placeGizmo() {
   gizmoTarget.updateMatrixWorld();
   gizmo.attach(gizmoTarget);
 }
+// Sends the handle set. A handle with `fresh` set (new, or a ball added) gets its target from
+// the server (fitted to the current shape); the others keep the target given here. The server
+// replies with every target and a frame, so earlier drags are kept, never snapped back.
+let handlesPending = false, undoOnHandles = false;
 function sendHandles() {
   state.symmetryResidual = null;
-  send({ type: 'set_handles', handles: handles.map((h) => ({ balls: h.balls })) });
-  if (handles.length) requestFrame(true); else showRest();
+  if (!handles.length) {
+    handlesPending = false;
+    send({ type: 'set_handles', handles: [] });
+    showRest();
+    return;
+  }
+  handlesPending = true;
+  setBusy('set_handles');
+  send({ type: 'set_handles', handles: handles.map((h) => ({ balls: h.balls })), transforms: handles.map((h, i) => (h.fresh ? null : transformsArray()[i])) });
+}
+const fromRows = (rows) => new THREE.Matrix4().set(...rows.flat());
+function onHandles(m) {
+  setBusy(null);
+  handlesPending = false;
+  state.handles = m.handles;
+  state.handleSamples = m.samples;
+  m.transforms.forEach((t, i) => { if (handles[i]) { handles[i].matrix = fromRows(t); handles[i].fresh = false; } });
+  state.handleTransforms = m.transforms;
+  $('deform-info').textContent = `${m.handles} handle(s), samples ${m.samples.join(' / ')} of ${m.total_samples}, ${m.dof} DoF\n` +
+    `precompute ${m.session_ms.toFixed(0)} ms, factorisation ${m.prefactor_ms.toFixed(1)} ms`;
+  if (undoOnHandles) { undoOnHandles = false; pushUndo(); }
+  placeGizmo();
+  drawHandles();
+  if (wantFrame) requestFrame();
+}
+// The server refused (or the user cancelled) a handle set: back to the last confirmed one.
+function handlesFailed() {
+  handlesPending = false;
+  undoOnHandles = false;
+  const last = undoStack.length ? undoStack[undoStack.length - 1] : [];
+  const same = JSON.stringify(last.map((h) => h.balls)) === JSON.stringify(handles.map((h) => h.balls));
+  if (same && !handles.some((h) => h.fresh)) return;
+  handles = last.map((h) => ({ balls: h.balls.map((b) => ({ ...b })), matrix: h.matrix.clone() }));
+  active = handles.length - 1;
+  state.handles = handles.length;
+  placeGizmo(); drawHandles();
+  if (handles.length) sendHandles(); else showRest();
 }
 function showRest() {
   if (!geometry || !restPositions) return;
   geometry.getAttribute('position').array.set(restPositions);
-  geometry.getAttribute('position').needsUpdate = true;
-  if (geometry.index) geometry.computeVertexNormals();
+  if (geometry.index) {
+    gl.bindBuffer(gl.ARRAY_BUFFER, gpuPositions);
+    gl.bufferSubData(gl.ARRAY_BUFFER, 0, restPositions);
+    if (!material.flatShading) uploadCpuNormals();
+  }
   state.meshVersion++;
   requestRender();
 }
@@ -435,7 +552,9 @@ function pick(ev) {
   const ndc = new THREE.Vector2(((ev.clientX - rect.left) / rect.width) * 2 - 1, -((ev.clientY - rect.top) / rect.height) * 2 + 1);
   const ray = new THREE.Raycaster();
   ray.setFromCamera(ndc, camera);
-  const hit = ray.intersectObject(object, false)[0];
+  // Picked on the CPU copy of the current shape (bounds refreshed: drags move them).
+  geometry.computeBoundingSphere();
+  const hit = ray.intersectObject(pickMesh, false)[0];
   if (!hit) return;
   // Back to the rest shape through barycentric coordinates of the hit triangle.
   const pos = geometry.getAttribute('position');
@@ -444,14 +563,15 @@ function pick(ev) {
   const bary = THREE.Triangle.getBarycoord(hit.point, P(pos.array, a), P(pos.array, b), P(pos.array, c), new THREE.Vector3());
   const rest = P(restPositions, a).multiplyScalar(bary.x).add(P(restPositions, b).multiplyScalar(bary.y)).add(P(restPositions, c).multiplyScalar(bary.z));
   const ball = { center: rest.toArray(), radius: parseFloat($('handle-radius').value) * state.diagonal };
+  if (handlesPending) return; // the previous handle set is still being prepared
   if (ev.shiftKey && active >= 0) {
     handles[active].balls.push(ball);
+    handles[active].fresh = true;
   } else {
-    handles.push({ balls: [ball], matrix: new THREE.Matrix4() });
+    handles.push({ balls: [ball], matrix: new THREE.Matrix4(), fresh: true });
     active = handles.length - 1;
   }
-  pushUndo();
-  placeGizmo();
+  undoOnHandles = true;
   drawHandles();
   sendHandles();
 }
@@ -468,15 +588,17 @@ function onGizmoMove() {
   gizmoTarget.updateMatrixWorld();
   h.matrix.copy(gizmoTarget.matrixWorld).multiply(new THREE.Matrix4().makeTranslation(restCentroid(h).negate()));
   drawHandles();
-  requestFrame(false);
+  requestFrame();
 }
-function requestFrame(force) {
+// One drag request in flight at a time; moves meanwhile only mark a frame as wanted, and the
+// newest gizmo pose is sent when the frame lands (the server also drops stale requests).
+function requestFrame() {
   if (!handles.length) return;
-  if (inFlight && !force) { wantFrame = true; return; }
+  if (inFlight || handlesPending) { wantFrame = true; return; }
   inFlight = true; wantFrame = false;
   seq = (seq + 1) >>> 0;
   sentAt.set(seq, performance.now());
-  send({ type: 'drag', seq, transforms: transformsArray() });
+  send({ type: 'drag', seq, transforms: transformsArray(), normals: !material.flatShading });
 }
 let releaseWanted = false;
 function endDrag() {
@@ -485,37 +607,50 @@ function endDrag() {
   if (!inFlight && !wantFrame) { send({ type: 'release' }); releaseWanted = false; }
 }
 
-function onFrame(s, pos, solveMs) {
-  const t0 = sentAt.get(s);
-  sentAt.delete(s);
-  for (const k of sentAt.keys()) if (k < s) sentAt.delete(k);
-  const attr = geometry.getAttribute('position');
-  if (attr.array.length === pos.length) {
-    attr.array.set(pos);
-    attr.needsUpdate = true;
-    if (!material.flatShading) geometry.computeVertexNormals();
-    geometry.computeBoundingSphere();
-    renderer.render(scene, camera);
-    renderer.getContext().finish();
-    state.meshVersion++;
-  }
+// A deformation frame: copy to the CPU shape, upload the positions, draw. Each stage is timed;
+// with the server's timestamps (same machine clock) the frame splits into request transfer,
+// server queue / solve / encode, reply transfer, decode, GPU upload and render.
+const epoch = (t) => performance.timeOrigin + t;
+function onFrame(head, pos, normals, tRecv) {
+  const t0 = sentAt.get(head.seq);
+  sentAt.delete(head.seq);
+  for (const k of sentAt.keys()) if (k < head.seq) sentAt.delete(k);
+  const attr = geometry && geometry.getAttribute('position');
+  if (!attr || attr.array.length !== pos.length || !gpuPositions) { if (t0 !== undefined) inFlight = false; return; }
+  attr.array.set(pos);
+  const tDecoded = performance.now();
+  gl.bindBuffer(gl.ARRAY_BUFFER, gpuPositions);
+  gl.bufferSubData(gl.ARRAY_BUFFER, 0, pos);
+  if (normals) { gl.bindBuffer(gl.ARRAY_BUFFER, gpuNormals); gl.bufferSubData(gl.ARRAY_BUFFER, 0, normals); }
+  gpuSync();
+  const tUploaded = performance.now();
+  renderQueued = false;
+  renderer.render(scene, camera);
+  gpuSync();
+  const tDrawn = performance.now();
+  state.meshVersion++;
   if (t0 !== undefined) {
-    const dt = performance.now() - t0;
+    const dt = tDrawn - t0;
     state.lastFrameMs = dt;
-    state.lastSolveMs = solveMs;
+    state.lastSolveMs = head.solveMs;
     state.framesReceived++;
     state.frameTimes.push(dt);
-    // Breakdown: server solve, transfer (send → received, less the solve), upload + draw.
-    state.frameLog.push({ total: dt, solve: solveMs, transfer: lastRecv - t0 - solveMs, draw: performance.now() - lastRecv });
+    const server = head.queueMs + head.solveMs + head.encodeMs;
+    state.frameLog.push({
+      seq: head.seq, total: dt, drawnAt: tDrawn,
+      request: head.receivedAt - epoch(t0), queue: head.queueMs, solve: head.solveMs, encode: head.encodeMs,
+      reply: epoch(tRecv) - head.sentAt, server, transfer: tRecv - t0 - server,
+      decode: tDecoded - tRecv, upload: tUploaded - tDecoded, render: tDrawn - tUploaded,
+    });
     if (state.frameLog.length > 2000) state.frameLog.shift();
     if (state.frameTimes.length > 1000) state.frameTimes.shift();
     const recent = state.frameTimes.slice(-60).sort((a, b) => a - b);
     state.medianFrameMs = recent[Math.floor(recent.length / 2)];
     updateHud();
+    inFlight = false;
   }
-  inFlight = false;
-  if (wantFrame) requestFrame(false);
-  else if (releaseWanted) { send({ type: 'release' }); releaseWanted = false; }
+  if (wantFrame) requestFrame();
+  else if (releaseWanted && !inFlight) { send({ type: 'release' }); releaseWanted = false; }
 }
 function updateHud() {
   const f = state.lastFrameMs == null ? 'frame —' :
@@ -523,6 +658,7 @@ function updateHud() {
   $('frame-time').textContent = f + (state.gridCell ? ` · grid ${state.gridCell}` : '');
 }
 function onDeformed(m) {
+  if (!geometry) return;
   state.symmetryResidual = m.residual;
   state.restResidual = m.rest_residual;
   state.released++;
@@ -542,6 +678,7 @@ function applySnapshot(s) {
   active = handles.length - 1;
   placeGizmo(); drawHandles(); sendHandles();
   if (handles.length) releaseWanted = true;
+  else state.maxDisplacement = 0;
 }
 $('undo').onclick = () => {
   if (!undoStack.length) return;
@@ -558,7 +695,7 @@ $('redo').onclick = () => {
 };
 $('reset').onclick = () => { applySnapshot([]); pushUndo(); state.maxDisplacement = 0; };
 $('export-format').onchange = () => { $('export-path').value = $('export-path').value.replace(/\.[^.\/]*$/, '') + '.' + $('export-format').value; };
-$('export').onclick = () => { setBusy('export'); send({ type: 'export', path: $('export-path').value, source: 'deformed' }); };
+$('export').onclick = () => { setBusy('export'); send({ type: 'export', path: $('export-path').value, source: 'deformed', download: true }); };
 
 // ---------------------------------------------------------------------------------------------
 // Resize
@@ -603,7 +740,7 @@ function onRetargetedMesh(pos, index, m) {
 }
 $('show-original').onchange = () => { if (object) object.visible = $('show-original').checked || !retargetObject; requestRender(); };
 $('find-offsets').onclick = () => { setBusy('offsets'); send({ type: 'offsets' }); };
-$('export-resized').onclick = () => { setBusy('export'); send({ type: 'export', path: $('export-resized-path').value, source: 'retargeted' }); };
+$('export-resized').onclick = () => { setBusy('export'); send({ type: 'export', path: $('export-resized-path').value, source: 'retargeted', download: true }); };
 
 // Test helpers: where a world point appears on screen, and a rest vertex.
 window.motif.project = (p) => {
@@ -613,6 +750,17 @@ window.motif.project = (p) => {
 };
 window.motif.restVertex = (i) => [restPositions[3 * i], restPositions[3 * i + 1], restPositions[3 * i + 2]];
 window.motif.gizmoScreen = () => (active >= 0 ? window.motif.project(gizmoTarget.position.toArray()) : null);
+// The current (deformed) shape as a plain array, and the surface point under a screen position.
+window.motif.positions = () => Array.from(geometry.getAttribute('position').array);
+window.motif.surfaceAt = (x, y) => {
+  if (!pickMesh) return null;
+  const rect = renderer.domElement.getBoundingClientRect();
+  const ray = new THREE.Raycaster();
+  ray.setFromCamera(new THREE.Vector2(((x - rect.left) / rect.width) * 2 - 1, -((y - rect.top) / rect.height) * 2 + 1), camera);
+  geometry.computeBoundingSphere();
+  const hit = ray.intersectObject(pickMesh, false)[0];
+  return hit ? hit.point.toArray() : null;
+};
 
 resize();
 connect();

@@ -268,6 +268,7 @@ pub fn studio(a: crate::cli::BenchStudioArgs, g: &GlobalArgs) -> anyhow::Result<
         .arg(&script)
         .arg(&exe)
         .args(["--steps", &a.steps.to_string(), "--example", &a.example, "--seed", &g.seed.to_string()])
+        .args(["--width", &a.width.to_string(), "--height", &a.height.to_string()])
         .status()
         .map_err(|e| anyhow::anyhow!("cannot run node ({e}); install Node.js (Debian: nodejs)"))?;
     if !status.success() {
