@@ -62,12 +62,13 @@ pub struct InstanceOptions {
     pub merge_overlap: f64,
     /// Classes need at least this many instances. Default 2 (a building block repeats).
     pub min_instances: usize,
-    /// Whether a class found by the spectral clustering is split into sub-classes of instances
-    /// that match feature by feature. Default [`ClassSplit::Descriptor`].
+    /// Whether a cluster found by the spectral clustering is split into classes whose instances'
+    /// surfaces agree. Default [`ClassSplit::Surface`].
     pub split: ClassSplit,
     /// [`ClassSplit::Surface`]: two groups of a cluster become separate classes only when the
     /// average surface distance between them is at least this many times the average distance
-    /// within either group. Not in the thesis. Default 2.
+    /// within the tighter of the two (a group that absorbed stragglers has an inflated spread).
+    /// Not in the thesis. Default 2.
     pub split_ratio: f64,
     /// [`ClassSplit::Surface`]: ... and at least this average fraction of unmatched surface
     /// points, so that near-identical copies (distances ≈ 0) are never split. Default 0.1.
@@ -620,9 +621,9 @@ fn pairwise(n: usize, d: impl Fn(usize, usize) -> f64 + Sync) -> Vec<f64> {
 /// Average-linkage agglomerative clustering of `n` instances under the distance matrix `dist`
 /// that refuses to merge two groups when both hold at least `min_size` instances and the average
 /// distance between them is at least `min_distance` and at least `ratio` times the average
-/// distance within either: two groups clearly further apart than their members are from each
-/// other stay separate classes; stragglers join their nearest group. Groups in order of their
-/// first instance.
+/// distance within the tighter of the two: groups clearly further apart than their members are
+/// from each other stay separate classes; stragglers join their nearest group. Groups in order
+/// of their first instance.
 fn split_by_linkage(
     dist: &[f64],
     n: usize,
