@@ -11,10 +11,14 @@
 //!   ≈ 1) never pull on each other; modes closer than half the bandwidth merge. As a guard against
 //!   MDS squeezing unrelated groups together in 5 dimensions, each cluster is split into the
 //!   connected components of its co-occurrence graph.
-//! - An instance is kept when it links at least `min_links` of its class's other words. Its box is
-//!   the axis-aligned box of its linked features, padded by half a HOC cell (features sit on
-//!   creases, the block's surface extends a little beyond them); the per-class average is the
-//!   median of each side's length, centred on each instance. Boxes are world-axis-aligned, as the
+//! - An instance is kept when it links at least `min_links` of its class's other words and at
+//!   least `min_instance_features` features in all. Its box ([`InstanceBoxes`]) is by default
+//!   the union of the class's constellation: every instance's linked features carried onto the
+//!   best-linked instance by the least-squares rigid motion between the features their stars
+//!   link through the same words, trimmed, padded by half a HOC cell (features sit on creases,
+//!   the block's surface extends a little beyond them), and carried back; the thesis's
+//!   per-class averaging of boxes, made robust to occlusion.
+//! - A cluster is split into classes whose instances' surfaces differ ([`ClassSplit`]). Boxes are world-axis-aligned, as the
 //!   evaluation protocol (5.5.2) and the schema are, rather than taken in the centre feature's
 //!   frame: on a crease the normal bisects the two faces, and a box in that tilted frame would
 //!   inflate every world box. Overlapping instances of one class (a word that fires on two
@@ -23,6 +27,8 @@
 use motif_core::Point3;
 use motif_core::geometry::{Aabb, Mat4, mat4_from_rt};
 use serde::{Deserialize, Serialize};
+
+use rayon::prelude::*;
 
 use crate::cooccurrence::PairMatch;
 use crate::dictionary::Word;
@@ -39,13 +45,73 @@ pub struct InstanceOptions {
     pub bandwidth: f64,
     /// Minimum fraction of the class's other words an instance must link to. Default 0.25.
     pub min_links: f64,
+    /// An instance needs at least this many features in its star (the centre and its links).
+    /// Not in the thesis, which discards word pairs with |Ψ(i, j)| < 5 (5.4) but states no
+    /// minimum for an instance; a "building block" of one or two co-occurring features is a
+    /// coincidence, not a block. Default 5, the thesis's |Ψ| threshold.
+    pub min_instance_features: usize,
     /// Box padding around the linked features, in ε. Default 4 (half a HOC cell).
     pub box_margin: f64,
+    /// How instance boxes are estimated. Default [`InstanceBoxes::Union`].
+    pub boxes: InstanceBoxes,
+    /// [`InstanceBoxes::Union`]: the pooled features' box spans the quantiles `box_trim` to
+    /// `1 − box_trim` per axis, so a few wrong links do not stretch it. Default 0.05.
+    pub box_trim: f64,
     /// Two instances of one class whose boxes overlap by more than this fraction of the smaller
     /// box are merged. Default 0.5.
     pub merge_overlap: f64,
     /// Classes need at least this many instances. Default 2 (a building block repeats).
     pub min_instances: usize,
+    /// Whether a cluster found by the spectral clustering is split into classes whose instances'
+    /// surfaces agree. Default [`ClassSplit::Surface`].
+    pub split: ClassSplit,
+    /// [`ClassSplit::Surface`]: two groups of a cluster become separate classes only when the
+    /// average surface distance between them is at least this many times the average distance
+    /// within the tighter of the two (a group that absorbed stragglers has an inflated spread).
+    /// Not in the thesis. Default 2.
+    pub split_ratio: f64,
+    /// [`ClassSplit::Surface`]: ... and at least this average fraction of unmatched surface
+    /// points, so that near-identical copies (distances ≈ 0) are never split. Default 0.1.
+    pub split_min_distance: f64,
+    /// [`ClassSplit::Surface`]: a surface point is matched when the other instance has a point
+    /// within this distance, in ε. Default 2.
+    pub surface_tolerance: f64,
+}
+
+/// How instance boxes are estimated (5.3.3: "the bounding boxes of all instances from the same
+/// class are averaged").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum InstanceBoxes {
+    /// Each instance's linked features' box, side lengths replaced by the class median.
+    Median,
+    /// The box of the union of all instances' linked features, each instance's carried onto a
+    /// reference instance by the rigid motion between their star models (least squares over the
+    /// features linked through the same word), carried back to every instance. Under occlusion
+    /// each instance shows part of the block and the median box shrinks to the commonly seen
+    /// part; the union recovers the block. The default.
+    #[default]
+    Union,
+}
+
+/// How the instances of one co-occurrence cluster become classes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum ClassSplit {
+    /// One class per cluster, as in the thesis (5.3.3).
+    None,
+    /// Split each cluster by average-linkage clustering of its instances under the surface
+    /// distance: 1 − the larger of the two directed fractions of crease points (resampled points
+    /// whose curvature passes the feature threshold) in one instance's box that find a crease
+    /// point within [`InstanceOptions::surface_tolerance`] when laid onto the other instance by
+    /// the rigid motion (least squares) between their star models' features. The larger
+    /// direction, because occlusion hides different parts of two instances of one block; two
+    /// different blocks miss in both directions. Not in the thesis: co-occurrence alone cannot
+    /// tell apart two blocks that share their co-occurring corners (window styles with the same
+    /// frame), and the evaluation (5.5.2) scores a merged class against one ground-truth class
+    /// only.
+    #[default]
+    Surface,
 }
 
 impl Default for InstanceOptions {
@@ -54,9 +120,16 @@ impl Default for InstanceOptions {
             embedding_dims: 5,
             bandwidth: 0.5,
             min_links: 0.25,
+            min_instance_features: 5,
             box_margin: 4.0,
+            boxes: InstanceBoxes::Union,
+            box_trim: 0.05,
             merge_overlap: 0.5,
             min_instances: 2,
+            split: ClassSplit::Surface,
+            split_ratio: 2.0,
+            split_min_distance: 0.1,
+            surface_tolerance: 2.0,
         }
     }
 }
@@ -70,6 +143,9 @@ pub struct Instance {
     pub flip: u8,
     /// Features linked by the star model, the centre included.
     pub features: Vec<usize>,
+    /// The class's words (dictionary indices, ascending) this instance links to, the centre word
+    /// excluded: the instance's constellation signature.
+    pub links: Vec<usize>,
     /// World-space frame: local (x, y, z, 1) to world.
     pub frame: Mat4,
     /// Axis-aligned world box of the class box placed at this instance.
@@ -87,6 +163,8 @@ pub struct Class {
     pub extent: Point3,
     /// The instances.
     pub instances: Vec<Instance>,
+    /// The co-occurrence cluster the class came from (classes split from one cluster share it).
+    pub cluster: usize,
 }
 
 impl Class {
@@ -105,6 +183,8 @@ pub struct ClusteringReport {
     pub clusters: usize,
     /// Classes with enough instances.
     pub classes: usize,
+    /// Extra classes made by splitting clusters ([`ClassSplit`]).
+    pub splits: usize,
 }
 
 /// Symmetrised eq. 5.3 over `k` words, zero below the support threshold.
@@ -227,6 +307,7 @@ pub fn detect_instances(
     eps: f64,
     match_radius: f64,
     min_support: usize,
+    surface: Option<&SpatialHash>,
     o: &InstanceOptions,
 ) -> (Vec<Class>, ClusteringReport) {
     let k = words.len();
@@ -284,7 +365,7 @@ pub fn detect_instances(
         })
         .collect();
     let mut classes = Vec::new();
-    for comp in clusters {
+    for (cluster, comp) in clusters.into_iter().enumerate() {
         if comp.len() < 2 {
             continue;
         }
@@ -319,22 +400,25 @@ pub fn detect_instances(
         }
         let need = ((o.min_links * others.len() as f64).ceil() as usize).max(1);
         // Star model: link each centre feature to the predicted member of every other word.
-        let mut raw: Vec<(usize, u8, Vec<usize>, Point3, Point3)> = Vec::new();
+        let mut raw: Vec<RawInstance> = Vec::new();
         for m in &words[c].members {
             let f = &features[m.feature as usize];
             let mut linked = vec![m.feature as usize];
-            let mut links = 0;
+            let mut link_words = Vec::new();
+            let mut link_frames = vec![(m.feature as usize, m.flip)];
             for &(j, pm) in &others {
                 let pred = f.to_world(m.flip, pm.offset);
                 if let Some((b, _)) = word_hashes[j].nearest_within(pred, fine_r) {
-                    let fb = words[j].members[b].feature as usize;
+                    let mb = words[j].members[b];
+                    let fb = mb.feature as usize;
                     if fb != m.feature as usize {
-                        links += 1;
+                        link_words.push(j);
                         linked.push(fb);
+                        link_frames.push((fb, mb.flip));
                     }
                 }
             }
-            if links < need {
+            if link_words.len() < need || link_words.len() + 1 < o.min_instance_features {
                 continue;
             }
             linked.sort_unstable();
@@ -348,58 +432,94 @@ pub fn detect_instances(
                     hi[d] = hi[d].max(q[d]);
                 }
             }
-            raw.push((m.feature as usize, m.flip, linked, lo, hi));
+            // Word indices of `others` are ascending only when `comp` is; keep the pairing of
+            // words and frames, sorted by word.
+            let mut by_word: Vec<(usize, (usize, u8))> =
+                link_words.iter().copied().zip(link_frames[1..].iter().copied()).collect();
+            by_word.sort_unstable_by_key(|x| x.0);
+            raw.push(RawInstance {
+                centre: m.feature as usize,
+                flip: m.flip,
+                linked,
+                lo,
+                hi,
+                links: by_word.iter().map(|x| x.0).collect(),
+                frames: std::iter::once((m.feature as usize, m.flip))
+                    .chain(by_word.iter().map(|x| x.1))
+                    .collect(),
+            });
         }
         if raw.len() < o.min_instances.max(1) {
             continue;
         }
-        let pad = o.box_margin * eps;
-        let med = |sel: &dyn Fn(&(usize, u8, Vec<usize>, Point3, Point3)) -> f64| {
-            let mut v: Vec<f64> = raw.iter().map(sel).collect();
-            v.sort_by(f64::total_cmp);
-            v[v.len() / 2]
-        };
-        let extent = [
-            med(&|r| r.4[0] - r.3[0]) + 2.0 * pad,
-            med(&|r| r.4[1] - r.3[1]) + 2.0 * pad,
-            med(&|r| r.4[2] - r.3[2]) + 2.0 * pad,
-        ];
-        let mut instances: Vec<Instance> = raw
-            .into_iter()
-            .map(|(centre, flip, linked, lo, hi)| {
-                let f = &features[centre];
-                let a = f.axes(flip);
-                let r =
-                    [[a[0][0], a[1][0], a[2][0]], [a[0][1], a[1][1], a[2][1]], [a[0][2], a[1][2], a[2][2]]];
-                let frame = mat4_from_rt(r, f.position);
-                let c = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0, (lo[2] + hi[2]) / 2.0];
-                let aabb = Aabb {
-                    min: [c[0] - extent[0] / 2.0, c[1] - extent[1] / 2.0, c[2] - extent[2] / 2.0],
-                    max: [c[0] + extent[0] / 2.0, c[1] + extent[1] / 2.0, c[2] + extent[2] / 2.0],
-                };
-                Instance { centre, flip, features: linked, frame, aabb }
-            })
-            .collect();
-        // Merge overlapping instances, best linked first.
-        instances.sort_by(|a, b| b.features.len().cmp(&a.features.len()).then(a.centre.cmp(&b.centre)));
-        let mut kept: Vec<Instance> = Vec::new();
-        for inst in instances {
-            let overlaps = kept.iter().any(|q| {
-                inst.aabb.intersection(&q.aabb).is_some_and(|x| {
-                    x.volume()
-                        > o.merge_overlap * inst.aabb.volume().min(q.aabb.volume()).max(f64::MIN_POSITIVE)
-                })
-            });
-            if !overlaps {
-                kept.push(inst);
-            }
-        }
-        if kept.len() < o.min_instances.max(1) {
-            continue;
-        }
         let mut words_of_class: Vec<usize> = comp.iter().map(|&a| connected[a]).collect();
         words_of_class.sort_unstable();
-        classes.push(Class { words: words_of_class, centre_word: c, extent, instances: kept });
+        let groups = match (o.split, surface) {
+            (ClassSplit::Surface, Some(surface)) => {
+                let tol = o.surface_tolerance * eps;
+                // Each instance's region: the class box (median linked extents, before any split)
+                // at the instance; its surface points, at most `SURFACE_SAMPLES` of them.
+                let ext = median_extent(&raw, o.box_margin * eps);
+                let regions: Vec<Vec<Point3>> = raw
+                    .iter()
+                    .map(|r| {
+                        let c =
+                            [(r.lo[0] + r.hi[0]) / 2.0, (r.lo[1] + r.hi[1]) / 2.0, (r.lo[2] + r.hi[2]) / 2.0];
+                        let half = [ext[0] / 2.0, ext[1] / 2.0, ext[2] / 2.0];
+                        let mut v = Vec::new();
+                        surface.for_each_within(
+                            c,
+                            (half[0] * half[0] + half[1] * half[1] + half[2] * half[2]).sqrt(),
+                            |i, _| {
+                                let p = surface.point(i);
+                                if (0..3).all(|d| (p[d] - c[d]).abs() <= half[d]) {
+                                    v.push((i, p));
+                                }
+                            },
+                        );
+                        v.sort_unstable_by_key(|x| x.0);
+                        let step = v.len().div_ceil(SURFACE_SAMPLES).max(1);
+                        v.into_iter().step_by(step).map(|x| x.1).collect()
+                    })
+                    .collect();
+                let dist = pairwise(raw.len(), |a, b| {
+                    let (pa, pb) = correspondences(&raw[a], &raw[b], features);
+                    let Some(b_from_a) = kabsch(&pa, &pb) else { return 1.0 };
+                    let a_from_b = b_from_a.inverse();
+                    let hit = |x: usize, t: &nalgebra::Isometry3<f64>| {
+                        regions[x]
+                            .iter()
+                            .filter(|&&p| {
+                                let q = t * nalgebra::Point3::new(p[0], p[1], p[2]);
+                                surface.nearest_within([q.x, q.y, q.z], tol).is_some()
+                            })
+                            .count()
+                    };
+                    if regions[a].is_empty() || regions[b].is_empty() {
+                        return 1.0;
+                    }
+                    let fa = hit(a, &b_from_a) as f64 / regions[a].len() as f64;
+                    let fb = hit(b, &a_from_b) as f64 / regions[b].len() as f64;
+                    1.0 - fa.max(fb)
+                });
+                split_by_linkage(
+                    &dist,
+                    raw.len(),
+                    o.min_instances.max(2),
+                    o.split_ratio,
+                    o.split_min_distance,
+                )
+            }
+            _ => vec![(0..raw.len()).collect()],
+        };
+        report.splits += groups.len().saturating_sub(1);
+        let mut raw: Vec<Option<RawInstance>> = raw.into_iter().map(Some).collect();
+        for g in groups {
+            let part: Vec<RawInstance> = g.iter().filter_map(|&r| raw[r].take()).collect();
+            if let Some(class) = assemble(part, &words_of_class, c, cluster, features, eps, o) {
+                classes.push(class);
+            }
+        }
     }
     // Largest first: most instances, then most linked features.
     classes.sort_by(|a, b| {
@@ -409,6 +529,264 @@ pub fn detect_instances(
     });
     report.classes = classes.len();
     (classes, report)
+}
+
+/// One star-model instance before boxes are averaged.
+struct RawInstance {
+    centre: usize,
+    flip: u8,
+    linked: Vec<usize>,
+    lo: Point3,
+    hi: Point3,
+    /// Linked words, ascending.
+    links: Vec<usize>,
+    /// (feature, flip) of the centre, then of each linked word's member in `links` order.
+    frames: Vec<(usize, u8)>,
+}
+
+/// At most this many surface points represent an instance in [`ClassSplit::Surface`].
+const SURFACE_SAMPLES: usize = 800;
+
+/// The median side lengths of the instances' linked boxes, each grown by `pad` on both sides.
+fn median_extent(raw: &[RawInstance], pad: f64) -> Point3 {
+    let med = |d: usize| {
+        let mut v: Vec<f64> = raw.iter().map(|r| r.hi[d] - r.lo[d]).collect();
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(0.0) + 2.0 * pad
+    };
+    [med(0), med(1), med(2)]
+}
+
+/// Corresponding positions of two instances: their centres and the features each links through
+/// the same word.
+fn correspondences(a: &RawInstance, b: &RawInstance, features: &[Feature]) -> (Vec<Point3>, Vec<Point3>) {
+    let pos = |r: &RawInstance, k: usize| features[r.frames[k].0].position;
+    let mut pa = vec![pos(a, 0)];
+    let mut pb = vec![pos(b, 0)];
+    let (mut i, mut j) = (0, 0);
+    while i < a.links.len() && j < b.links.len() {
+        match a.links[i].cmp(&b.links[j]) {
+            std::cmp::Ordering::Less => i += 1,
+            std::cmp::Ordering::Greater => j += 1,
+            std::cmp::Ordering::Equal => {
+                pa.push(pos(a, i + 1));
+                pb.push(pos(b, j + 1));
+                i += 1;
+                j += 1;
+            }
+        }
+    }
+    (pa, pb)
+}
+
+/// The rigid motion that best maps `from` onto `to` in the least-squares sense (Kabsch), or
+/// `None` with fewer than three pairs.
+fn kabsch(from: &[Point3], to: &[Point3]) -> Option<nalgebra::Isometry3<f64>> {
+    if from.len() < 3 {
+        return None;
+    }
+    let n = from.len() as f64;
+    let v = |p: Point3| nalgebra::Vector3::new(p[0], p[1], p[2]);
+    let ca = from.iter().fold(nalgebra::Vector3::zeros(), |s, &p| s + v(p)) / n;
+    let cb = to.iter().fold(nalgebra::Vector3::zeros(), |s, &p| s + v(p)) / n;
+    let mut h = nalgebra::Matrix3::<f64>::zeros();
+    for (&a, &b) in from.iter().zip(to) {
+        h += (v(a) - ca) * (v(b) - cb).transpose();
+    }
+    let svd = h.svd(true, true);
+    let (u, vt) = (svd.u?, svd.v_t?);
+    let mut d = nalgebra::Matrix3::<f64>::identity();
+    if (vt.transpose() * u.transpose()).determinant() < 0.0 {
+        d[(2, 2)] = -1.0;
+    }
+    let r = vt.transpose() * d * u.transpose();
+    let rot = nalgebra::UnitQuaternion::from_matrix(&r);
+    let t = cb - rot * ca;
+    Some(nalgebra::Isometry3::from_parts(nalgebra::Translation3::from(t), rot))
+}
+
+/// The symmetric `n × n` matrix of `d(a, b)` (row-major), computed for a < b in parallel.
+fn pairwise(n: usize, d: impl Fn(usize, usize) -> f64 + Sync) -> Vec<f64> {
+    let upper: Vec<f64> =
+        (0..n * n).into_par_iter().map(|ij| if ij / n < ij % n { d(ij / n, ij % n) } else { 0.0 }).collect();
+    let mut out = upper.clone();
+    for i in 0..n {
+        for j in 0..i {
+            out[i * n + j] = upper[j * n + i];
+        }
+    }
+    out
+}
+
+/// Average-linkage agglomerative clustering of `n` instances under the distance matrix `dist`
+/// that refuses to merge two groups when both hold at least `min_size` instances and the average
+/// distance between them is at least `min_distance` and at least `ratio` times the average
+/// distance within the tighter of the two: groups clearly further apart than their members are
+/// from each other stay separate classes; stragglers join their nearest group. Groups in order
+/// of their first instance.
+fn split_by_linkage(
+    dist: &[f64],
+    n: usize,
+    min_size: usize,
+    ratio: f64,
+    min_distance: f64,
+) -> Vec<Vec<usize>> {
+    let d = |i: usize, j: usize| dist[i * n + j];
+    let sum =
+        |a: &[usize], b: &[usize]| a.iter().map(|&i| b.iter().map(|&j| d(i, j)).sum::<f64>()).sum::<f64>();
+    // Each group: members and the sum of its within-group distances (each pair once).
+    let mut groups: Vec<(Vec<usize>, f64)> = (0..n).map(|i| (vec![i], 0.0)).collect();
+    let within = |g: &(Vec<usize>, f64)| {
+        let m = g.0.len();
+        if m < 2 { 0.0 } else { g.1 / (m * (m - 1) / 2) as f64 }
+    };
+    loop {
+        let mut best: Option<(f64, usize, usize, f64)> = None;
+        for a in 0..groups.len() {
+            for b in (a + 1)..groups.len() {
+                let s = sum(&groups[a].0, &groups[b].0);
+                let h = s / (groups[a].0.len() * groups[b].0.len()) as f64;
+                let apart = groups[a].0.len() >= min_size
+                    && groups[b].0.len() >= min_size
+                    && h >= min_distance
+                    && h >= ratio * within(&groups[a]).min(within(&groups[b]));
+                if !apart && best.is_none_or(|x| h < x.0) {
+                    best = Some((h, a, b, s));
+                }
+            }
+        }
+        let Some((_, a, b, s)) = best else { break };
+        let (mb, wb) = groups.swap_remove(b);
+        groups[a].0.extend(mb);
+        groups[a].1 += wb + s;
+    }
+    let mut out: Vec<Vec<usize>> = groups
+        .into_iter()
+        .map(|(mut g, _)| {
+            g.sort_unstable();
+            g
+        })
+        .collect();
+    out.sort_by_key(|g| g[0]);
+    out
+}
+
+/// A class from a group of star-model instances: the per-class box (median side lengths, padded)
+/// placed at each instance, overlapping instances merged; `None` with too few instances.
+fn assemble(
+    raw: Vec<RawInstance>,
+    words_of_class: &[usize],
+    centre_word: usize,
+    cluster: usize,
+    features: &[Feature],
+    eps: f64,
+    o: &InstanceOptions,
+) -> Option<Class> {
+    if raw.len() < o.min_instances.max(1) {
+        return None;
+    }
+    let pad = o.box_margin * eps;
+    let extent = median_extent(&raw, pad);
+    // The class box as the union of the instances' constellations: every instance's linked
+    // features are carried onto a reference instance (the best linked) by the rigid motion
+    // between their star models, and the box of the pooled features (trimmed at the
+    // `box_trim` quantiles against stray links) is carried back to each instance. Occlusion
+    // hides different parts of different instances; their union covers the block.
+    let reference = (0..raw.len())
+        .max_by(|&a, &b| raw[a].linked.len().cmp(&raw[b].linked.len()).then(b.cmp(&a)))
+        .unwrap_or(0);
+    let transforms: Vec<Option<nalgebra::Isometry3<f64>>> = raw
+        .iter()
+        .map(|r| {
+            let (from, to) = correspondences(r, &raw[reference], features);
+            kabsch(&from, &to)
+        })
+        .collect();
+    let union_box = match o.boxes {
+        InstanceBoxes::Union => {
+            let mut pooled: [Vec<f64>; 3] = Default::default();
+            for (r, t) in raw.iter().zip(&transforms) {
+                let Some(t) = t else { continue };
+                for &g in &r.linked {
+                    let p = features[g].position;
+                    let q = t * nalgebra::Point3::new(p[0], p[1], p[2]);
+                    for d in 0..3 {
+                        pooled[d].push(q[d]);
+                    }
+                }
+            }
+            if pooled[0].len() < 4 {
+                None
+            } else {
+                let mut lo = [0.0; 3];
+                let mut hi = [0.0; 3];
+                for d in 0..3 {
+                    let v = &mut pooled[d];
+                    v.sort_by(f64::total_cmp);
+                    let q = |x: f64| v[((x * (v.len() - 1) as f64).round() as usize).min(v.len() - 1)];
+                    lo[d] = q(o.box_trim) - pad;
+                    hi[d] = q(1.0 - o.box_trim) + pad;
+                }
+                Some((lo, hi))
+            }
+        }
+        InstanceBoxes::Median => None,
+    };
+    let mut instances: Vec<Instance> = raw
+        .into_iter()
+        .zip(transforms)
+        .map(|(r, t)| {
+            let f = &features[r.centre];
+            let a = f.axes(r.flip);
+            let rot = [[a[0][0], a[1][0], a[2][0]], [a[0][1], a[1][1], a[2][1]], [a[0][2], a[1][2], a[2][2]]];
+            let frame = mat4_from_rt(rot, f.position);
+            let aabb = match (union_box, t) {
+                (Some((lo, hi)), Some(t)) => {
+                    let inv = t.inverse();
+                    let mut b: Option<Aabb> = None;
+                    for k in 0..8 {
+                        let c = [
+                            if k & 1 == 0 { lo[0] } else { hi[0] },
+                            if k & 2 == 0 { lo[1] } else { hi[1] },
+                            if k & 4 == 0 { lo[2] } else { hi[2] },
+                        ];
+                        let w = inv * nalgebra::Point3::new(c[0], c[1], c[2]);
+                        let w = [w.x, w.y, w.z];
+                        match &mut b {
+                            Some(b) => b.grow(w),
+                            None => b = Some(Aabb { min: w, max: w }),
+                        }
+                    }
+                    b.unwrap_or(Aabb { min: f.position, max: f.position })
+                }
+                _ => {
+                    let c = [(r.lo[0] + r.hi[0]) / 2.0, (r.lo[1] + r.hi[1]) / 2.0, (r.lo[2] + r.hi[2]) / 2.0];
+                    Aabb {
+                        min: [c[0] - extent[0] / 2.0, c[1] - extent[1] / 2.0, c[2] - extent[2] / 2.0],
+                        max: [c[0] + extent[0] / 2.0, c[1] + extent[1] / 2.0, c[2] + extent[2] / 2.0],
+                    }
+                }
+            };
+            Instance { centre: r.centre, flip: r.flip, features: r.linked, links: r.links, frame, aabb }
+        })
+        .collect();
+    // Merge overlapping instances, best linked first.
+    instances.sort_by(|a, b| b.features.len().cmp(&a.features.len()).then(a.centre.cmp(&b.centre)));
+    let mut kept: Vec<Instance> = Vec::new();
+    for inst in instances {
+        let overlaps = kept.iter().any(|q| {
+            inst.aabb.intersection(&q.aabb).is_some_and(|x| {
+                x.volume() > o.merge_overlap * inst.aabb.volume().min(q.aabb.volume()).max(f64::MIN_POSITIVE)
+            })
+        });
+        if !overlaps {
+            kept.push(inst);
+        }
+    }
+    if kept.len() < o.min_instances.max(1) {
+        return None;
+    }
+    Some(Class { words: words_of_class.to_vec(), centre_word, extent, instances: kept, cluster })
 }
 
 #[cfg(test)]
@@ -430,6 +808,126 @@ mod tests {
             for j in 0..n {
                 let de: f64 = e[i].iter().zip(&e[j]).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt();
                 assert!((de - d[i * n + j]).abs() < 1e-9, "{i} {j}: {de} vs {}", d[i * n + j]);
+            }
+        }
+    }
+
+    #[test]
+    fn kabsch_recovers_a_rigid_motion() {
+        let from: Vec<Point3> =
+            vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.3, 0.4, 1.5], [-1.0, 0.7, 0.2]];
+        let r = nalgebra::UnitQuaternion::from_axis_angle(
+            &nalgebra::Unit::new_normalize(nalgebra::Vector3::new(0.2, -0.7, 0.4)),
+            1.1,
+        );
+        let t = nalgebra::Isometry3::from_parts(nalgebra::Translation3::new(3.0, -1.0, 0.5), r);
+        let to: Vec<Point3> = from
+            .iter()
+            .map(|p| {
+                let q = t * nalgebra::Point3::new(p[0], p[1], p[2]);
+                [q.x, q.y, q.z]
+            })
+            .collect();
+        let k = kabsch(&from, &to).expect("three or more pairs");
+        for (p, q) in from.iter().zip(&to) {
+            let m = k * nalgebra::Point3::new(p[0], p[1], p[2]);
+            assert!((m.x - q[0]).abs() + (m.y - q[1]).abs() + (m.z - q[2]).abs() < 1e-9);
+        }
+        assert!(kabsch(&from[..2], &to[..2]).is_none());
+    }
+
+    /// A distance matrix of groups with the given sizes: `within` inside a group (plus a small
+    /// deterministic jitter), `between` across groups.
+    fn grouped(sizes: &[usize], within: f64, between: f64) -> (Vec<f64>, usize) {
+        let label: Vec<usize> =
+            sizes.iter().enumerate().flat_map(|(g, &n)| std::iter::repeat_n(g, n)).collect();
+        let n = label.len();
+        let mut d = vec![0.0; n * n];
+        for i in 0..n {
+            for j in 0..n {
+                if i != j {
+                    let jitter = 0.01 * (((i * 7 + j * 7) % 5) as f64 / 5.0);
+                    d[i * n + j] = if label[i] == label[j] { within } else { between } + jitter;
+                }
+            }
+        }
+        (d, n)
+    }
+
+    #[test]
+    fn linkage_splits_groups_that_are_clearly_apart() {
+        let (d, n) = grouped(&[6, 5], 0.05, 0.3);
+        let g = split_by_linkage(&d, n, 2, 2.0, 0.1);
+        assert_eq!(g, vec![(0..6).collect::<Vec<_>>(), (6..11).collect()]);
+    }
+
+    #[test]
+    fn linkage_keeps_a_noisy_class_whole() {
+        // Two groups no further apart than their members are from each other stay one class.
+        let (d, n) = grouped(&[6, 5], 0.2, 0.25);
+        assert_eq!(split_by_linkage(&d, n, 2, 2.0, 0.1).len(), 1);
+        // Near-identical groups (below the minimum distance) stay one class too.
+        let (d, n) = grouped(&[6, 5], 0.0, 0.05);
+        assert_eq!(split_by_linkage(&d, n, 2, 2.0, 0.1).len(), 1);
+    }
+
+    #[test]
+    fn a_straggler_joins_its_nearest_group() {
+        let (mut d, n) = grouped(&[5, 5, 1], 0.05, 0.4);
+        // The single instance 10 is closer to the first group.
+        for i in 0..5 {
+            d[i * n + 10] = 0.2;
+            d[10 * n + i] = 0.2;
+        }
+        let g = split_by_linkage(&d, n, 2, 2.0, 0.1);
+        assert_eq!(g, vec![vec![0, 1, 2, 3, 4, 10], (5..10).collect()]);
+    }
+
+    #[test]
+    fn union_boxes_cover_what_each_instance_shows_in_part() {
+        // One block (a 2 × 3 unit constellation) at two places; the first instance shows its
+        // lower part, the second its upper part, both its four shared corners.
+        let block: [Point3; 6] = [
+            [0.0, 0.0, 0.0],
+            [2.0, 0.0, 0.0],
+            [0.0, 1.0, 0.5],
+            [2.0, 1.0, 0.5],
+            [0.0, -1.0, 0.0],
+            [1.0, 2.0, 0.0],
+        ];
+        let mut features = Vec::new();
+        let mut raw = Vec::new();
+        for (shift, extra) in [([0.0, 0.0, 0.0], 4usize), ([10.0, 5.0, 0.0], 5)] {
+            let base = features.len();
+            for p in block {
+                let position = [p[0] + shift[0], p[1] + shift[1], p[2] + shift[2]];
+                features.push(Feature {
+                    point: 0,
+                    position,
+                    x: [0.0, 0.0, 1.0],
+                    y: [1.0, 0.0, 0.0],
+                    kappa: 1.0,
+                });
+            }
+            let shown: Vec<usize> = vec![base, base + 1, base + 2, base + 3, base + extra];
+            let lo = [0.0; 3];
+            raw.push(RawInstance {
+                centre: base,
+                flip: 0,
+                linked: shown.clone(),
+                lo,
+                hi: lo,
+                links: vec![1, 2, 3, 10 + extra],
+                frames: shown.iter().map(|&f| (f, 0)).collect(),
+            });
+        }
+        let o = InstanceOptions { box_margin: 0.0, box_trim: 0.0, ..Default::default() };
+        let c = assemble(raw, &[0, 1, 2, 3], 0, 0, &features, 1.0, &o).expect("two instances");
+        for inst in &c.instances {
+            let s = if inst.centre == 0 { [0.0, 0.0, 0.0] } else { [10.0, 5.0, 0.0] };
+            for p in block {
+                let q = [p[0] + s[0], p[1] + s[1], p[2] + s[2]];
+                assert!(inst.aabb.contains(q), "{q:?} outside {:?}", inst.aabb);
             }
         }
     }

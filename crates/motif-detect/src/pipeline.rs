@@ -17,6 +17,7 @@ use crate::cooccurrence::{EmOptions, EmReport, match_all, run_em};
 use crate::detection::{DetectedClass, DetectedInstance, DetectionResult};
 use crate::dictionary::{DictionaryOptions, build};
 use crate::error::{DetectError, Result};
+use crate::grid::SpatialHash;
 use crate::hoc::{HocOptions, compute};
 use crate::instances::{Class, ClusteringReport, InstanceOptions, detect_instances};
 use crate::preprocess::{Feature, PreprocessOptions, Preprocessed, preprocess};
@@ -54,7 +55,8 @@ pub struct DetectOptions {
     /// MDL stopping rule: a round's class is kept only when describing its instances as copies of
     /// one template saves at least this fraction of all features, saving = (N − 1)·f̄ − f̄ − N
     /// for N instances of f̄ features each (the template once, one transform per instance, instead
-    /// of every instance's features). The thesis keeps "the minimal number of classes that
+    /// of every instance's features); for a cluster split into several classes
+    /// ([`crate::instances::ClassSplit`]), the sum of its classes' savings. The thesis keeps "the minimal number of classes that
     /// describe most of the input" without a number; 0.02 stops once a class explains under 2% of
     /// the features. Default 0.02.
     pub mdl_min_saving: f64,
@@ -103,8 +105,10 @@ pub struct RoundReport {
     pub em: EmReport,
     /// Spectral clustering.
     pub clustering: ClusteringReport,
-    /// Instances of the class kept in this round (0 when the round found nothing).
+    /// Instances of the classes kept in this round (0 when the round found nothing).
     pub kept_instances: usize,
+    /// Classes kept in this round: the largest and those split from its cluster.
+    pub kept_classes: usize,
     /// The MDL saving of a class that was found but rejected by the stopping rule.
     pub rejected_saving: Option<f64>,
     /// Words of the kept class.
@@ -265,6 +269,14 @@ pub fn detect(
     progress.finish();
     report.seconds.descriptors = t1.elapsed().as_secs_f64();
 
+    // The crease points of the resampled surface (dimensionless curvature above the feature
+    // threshold), hashed once for the instance stage's surface comparisons: flat wall matches
+    // anything, the creases carry the shape.
+    let crease =
+        o.preprocess.kappa_threshold / (o.preprocess.curvature_radius * pre.epsilon).max(f64::MIN_POSITIVE);
+    let crease_pts: Vec<motif_core::Point3> =
+        (0..pre.points.len()).filter(|&i| pre.kappa[i] > crease).map(|i| pre.points[i]).collect();
+    let surface = SpatialHash::new(&crease_pts, o.instances.surface_tolerance * pre.epsilon);
     let mut active: Vec<bool> = vec![true; features.len()];
     let mut classes: Vec<Class> = Vec::new();
     for round in 0..o.mdl_rounds.max(1) {
@@ -276,41 +288,50 @@ pub fn detect(
             &format!("MDL round {}: dictionary, EM, instances", round + 1),
             3 + o.em.iterations as u64,
         );
-        let (found, mut rr) = run_round(&pre, &features, &desc, &ids, o, round, progress);
+        let (found, mut rr) = run_round(&pre, &surface, &features, &desc, &ids, o, round, progress);
         progress.finish();
         report.seconds.dictionary += rr.seconds[0];
         report.seconds.em += rr.seconds[1];
         report.seconds.instances += rr.seconds[2];
-        let Some(class) = found else {
-            report.rounds.push(rr);
-            break;
+        // The largest class and the classes split from its cluster: the MDL stopping rule is
+        // applied to the cluster (a split refines one description; its saving is the sum of its
+        // classes'), and within it classes that save nothing are dropped.
+        let saving = mdl_saving;
+        let total: f64 = found.iter().map(|c| saving(c).max(0.0)).sum();
+        let kept: Vec<Class> = if total < o.mdl_min_saving * features.len() as f64 {
+            if !found.is_empty() {
+                rr.rejected_saving = Some(total);
+            }
+            Vec::new()
+        } else {
+            found.into_iter().filter(|c| saving(c) > 0.0).collect()
         };
-        let n = class.instances.len() as f64;
-        let fbar = class.instances.iter().map(|i| i.features.len()).sum::<usize>() as f64 / n.max(1.0);
-        let saving = (n - 1.0) * fbar - fbar - n;
-        if saving < o.mdl_min_saving * features.len() as f64 {
-            rr.rejected_saving = Some(saving);
+        if kept.is_empty() {
             report.rounds.push(rr);
             break;
         }
-        rr.kept_instances = class.instances.len();
-        rr.kept_words = class.words.len();
-        rr.kept_features_per_instance = class.instances.iter().map(|i| i.features.len()).sum::<usize>()
-            as f64
-            / class.instances.len().max(1) as f64;
+        let main = &kept[0];
+        rr.kept_instances = kept.iter().map(|c| c.instances.len()).sum();
+        rr.kept_words = main.words.len();
+        rr.kept_features_per_instance =
+            kept.iter().flat_map(|c| c.instances.iter().map(|i| i.features.len())).sum::<usize>() as f64
+                / rr.kept_instances.max(1) as f64;
+        rr.kept_classes = kept.len();
         report.rounds.push(rr);
-        // Remove the features the kept class covers (5.4).
-        for &f in &ids {
-            if (0..class.instances.len()).any(|k| class.contains(k, features[f].position)) {
-                active[f] = false;
+        for class in kept {
+            // Remove the features the kept class covers (5.4).
+            for &f in &ids {
+                if (0..class.instances.len()).any(|k| class.contains(k, features[f].position)) {
+                    active[f] = false;
+                }
             }
-        }
-        for inst in &class.instances {
-            for &f in &inst.features {
-                active[f] = false;
+            for inst in &class.instances {
+                for &f in &inst.features {
+                    active[f] = false;
+                }
             }
+            classes.push(class);
         }
-        classes.push(class);
     }
 
     let t5 = Instant::now();
@@ -323,17 +344,19 @@ pub fn detect(
     Ok(Detection { result, labels, classes, features, report, samples: None })
 }
 
-/// One MDL round over the active features `ids`: returns the largest class (in global feature
-/// indices) and the round's report.
+/// One MDL round over the active features `ids`: returns the classes of the cluster that saves
+/// most, largest first (in global feature indices), and the round's
+/// report.
 fn run_round(
     pre: &Preprocessed,
+    surface: &SpatialHash,
     features: &[Feature],
     desc: &crate::hoc::Descriptors,
     ids: &[usize],
     o: &DetectOptions,
     round: usize,
     progress: &dyn Progress,
-) -> (Option<Class>, RoundReport) {
+) -> (Vec<Class>, RoundReport) {
     let eps = pre.epsilon;
     let mut rr = RoundReport { features: ids.len(), ..Default::default() };
     // Work on the sub-problem of active features; map back at the end.
@@ -368,22 +391,41 @@ fn run_round(
         eps,
         o.em.match_radius,
         o.em.min_support,
+        Some(surface),
         &o.instances,
     );
     rr.clustering = cr;
     rr.seconds[2] = t.elapsed().as_secs_f64();
     progress.inc(1);
-    if classes.is_empty() {
-        return (None, rr);
-    }
-    let mut c = classes.swap_remove(0);
-    for inst in &mut c.instances {
-        inst.centre = ids[inst.centre];
-        for f in &mut inst.features {
-            *f = ids[*f];
+    // "The largest class" of 5.4, read as MDL does: the cluster whose classes save the most.
+    let mut totals: Vec<(usize, f64)> = Vec::new();
+    for c in &classes {
+        match totals.iter_mut().find(|t| t.0 == c.cluster) {
+            Some(t) => t.1 += mdl_saving(c).max(0.0),
+            None => totals.push((c.cluster, mdl_saving(c).max(0.0))),
         }
     }
-    (Some(c), rr)
+    let Some(&(cluster, _)) = totals.iter().max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0))) else {
+        return (Vec::new(), rr);
+    };
+    classes.retain(|c| c.cluster == cluster);
+    for c in &mut classes {
+        for inst in &mut c.instances {
+            inst.centre = ids[inst.centre];
+            for f in &mut inst.features {
+                *f = ids[*f];
+            }
+        }
+    }
+    (classes, rr)
+}
+
+/// The MDL saving of describing a class's instances as copies of one template (see
+/// [`DetectOptions::mdl_min_saving`]).
+fn mdl_saving(class: &Class) -> f64 {
+    let n = class.instances.len() as f64;
+    let fbar = class.instances.iter().map(|i| i.features.len()).sum::<usize>() as f64 / n.max(1.0);
+    (n - 1.0) * fbar - fbar - n
 }
 
 fn size_stats(words: &[crate::dictionary::Word]) -> (usize, usize) {
