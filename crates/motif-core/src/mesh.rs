@@ -92,6 +92,17 @@ impl TriMesh {
         [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
     }
 
+    /// Signed volume enclosed by the triangles (divergence theorem, Σ a · (b × c) / 6): positive
+    /// for a closed mesh whose faces wind counter-clockwise seen from outside.
+    pub fn signed_volume(&self) -> f64 {
+        (0..self.triangles.len())
+            .map(|f| {
+                let [a, b, c] = self.corners(f);
+                crate::geometry::dot(a, cross(b, c)) / 6.0
+            })
+            .sum()
+    }
+
     /// Unnormalised normal `(b − a) × (c − a)` of triangle `f`; its length is twice the area.
     #[inline]
     pub fn face_cross(&self, f: usize) -> Point3 {

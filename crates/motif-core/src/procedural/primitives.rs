@@ -488,23 +488,13 @@ pub fn cylinder_mesh(radius: f64, z0: f64, z1: f64, segments: usize, rings: usiz
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::{cross, dot};
-
-    fn signed_volume(m: &TriMesh) -> f64 {
-        (0..m.num_triangles())
-            .map(|f| {
-                let [a, b, c] = m.corners(f);
-                dot(a, cross(b, c)) / 6.0
-            })
-            .sum()
-    }
 
     #[test]
     fn boxes_are_closed_and_outward() {
         let m = box_mesh([0.0, 0.0, 0.0], [1.0, 2.0, 3.0], [2, 3, 4]).unwrap();
         let e = m.edge_stats();
         assert_eq!((e.boundary, e.non_manifold), (0, 0));
-        assert!((signed_volume(&m) - 6.0).abs() < 1e-12);
+        assert!((TriMesh::signed_volume(&m) - 6.0).abs() < 1e-12);
         assert_eq!(m.degenerate_triangles(), 0);
         assert!(box_mesh([0.0; 3], [1.0, 0.0, 1.0], [1, 1, 1]).is_err());
     }
@@ -516,7 +506,7 @@ mod tests {
         assert_eq!((e.boundary, e.non_manifold), (0, 0));
         assert_eq!(m.degenerate_triangles(), 0);
         let exact = 0.5 * 64.0 * (std::f64::consts::TAU / 64.0).sin();
-        assert!((signed_volume(&m) - exact).abs() < 1e-12);
+        assert!((TriMesh::signed_volume(&m) - exact).abs() < 1e-12);
     }
 
     #[test]
@@ -527,7 +517,7 @@ mod tests {
         let full = orbit(&half, &[crate::geometry::IDENTITY4, mirror]);
         let e = full.edge_stats();
         assert_eq!((e.boundary, e.non_manifold), (0, 0));
-        assert!((signed_volume(&full) - 8.0).abs() < 1e-12);
+        assert!((TriMesh::signed_volume(&full) - 8.0).abs() < 1e-12);
         // Welded along the mirror seam: the surface points of a 5 × 3 × 3 grid (45 minus 3 inside).
         assert_eq!(full.num_vertices(), 42);
     }

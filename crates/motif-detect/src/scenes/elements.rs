@@ -405,28 +405,19 @@ pub(crate) fn from_mesh(name: &str, mesh: &TriMesh, size: f64) -> Option<Templat
 #[cfg(test)]
 mod tests {
     use super::*;
-    use motif_core::geometry::{cross, dot};
-
-    fn signed_volume(m: &TriMesh) -> f64 {
-        (0..m.num_triangles())
-            .map(|f| {
-                let [a, b, c] = m.corners(f);
-                dot(a, cross(b, c)) / 6.0
-            })
-            .sum()
-    }
+    use motif_core::geometry::dot;
 
     #[test]
     fn primitives_are_closed_and_outward() {
         let s = sphere([1.0, 2.0, 3.0], 0.5, 24);
         let e = s.edge_stats();
         assert_eq!((e.boundary, e.non_manifold), (0, 0));
-        let v = signed_volume(&s);
+        let v = TriMesh::signed_volume(&s);
         let exact = 4.0 / 3.0 * std::f64::consts::PI * 0.125;
         assert!(v > 0.9 * exact && v < exact, "{v} vs {exact}");
         for axis in 0..3 {
             let c = cylinder(axis, [0.5, 0.5, 0.5], 0.2, 1.0, 2.0, 12).unwrap();
-            assert!(signed_volume(&c) > 0.0, "axis {axis}");
+            assert!(TriMesh::signed_volume(&c) > 0.0, "axis {axis}");
             let b = c.aabb().unwrap();
             assert!((b.min[axis] - 1.0).abs() < 1e-12 && (b.max[axis] - 2.0).abs() < 1e-12);
         }
@@ -451,7 +442,7 @@ mod tests {
             for (i, p) in t.parts.iter().enumerate() {
                 let e = p.mesh.edge_stats();
                 if e.boundary == 0 {
-                    assert!(signed_volume(&p.mesh) > 0.0, "{} part {i}", t.name);
+                    assert!(TriMesh::signed_volume(&p.mesh) > 0.0, "{} part {i}", t.name);
                 }
             }
         }
