@@ -385,10 +385,21 @@ pub enum LabelOrderArg {
 #[derive(Debug, Clone, Copy, ValueEnum, Default, PartialEq)]
 pub enum CyclesArg {
     /// Every label in every cycle until no move lowers the energy.
-    #[default]
     Full,
     /// Labels whose last move succeeded first; stops earlier on easy problems.
     Adaptive,
+    /// GCO's strategic queues: failed labels set aside, successful ones retried first.
+    #[default]
+    Queue,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum, Default, PartialEq)]
+pub enum TiesArg {
+    /// Among equally good cuts, switch the most sites to the move's label.
+    #[default]
+    MostAlpha,
+    /// Among equally good cuts, switch the fewest sites (GCO's choice).
+    FewestAlpha,
 }
 
 #[derive(Debug, Args)]
@@ -404,6 +415,9 @@ pub struct MrfSolveArgs {
     /// Cycle strategy.
     #[arg(long, value_enum, default_value_t)]
     pub cycles: CyclesArg,
+    /// Which cut a move applies when several are optimal.
+    #[arg(long, value_enum, default_value_t)]
+    pub ties: TiesArg,
     #[command(flatten)]
     pub json: JsonArg,
 }

@@ -6,9 +6,13 @@
 //! Each expansion move lets every site either keep its label or switch to one label α; the best
 //! move is a minimum cut (V. Kolmogorov and R. Zabih, "What energy functions can be minimized via
 //! graph cuts?", TPAMI 26(2), 2004), computed with the [`crate::maxflow`] Boykov–Kolmogorov
-//! solver. Moves cycle over all labels until a whole cycle lowers the energy no further; a move is
-//! applied only when it lowers the energy, and among equally good cuts the one switching the most
-//! sites to α is taken (as in BVZ and GCO).
+//! solver. Moves are scheduled in passes over the labels until the labelling is a local minimum of
+//! every expansion move — by default with GCO's strategic queues ([`CycleStrategy::Queue`]),
+//! which retry the labels whose moves succeed and set the others aside; a move is applied only
+//! when it lowers the energy, and among equally good cuts the one switching the most sites to α
+//! is taken ([`TieBreak::MostAlpha`]). With this schedule Motif takes the same moves as GCO 3.0
+//! and reaches the same energies on the `mrf_grid_v1` benchmarks. Several moves can be solved at
+//! once on several threads without changing the result (see [`AlphaExpansion`]).
 //!
 //! Pairwise costs come from a callback `V(p, q, lp, lq)` evaluated per edge, so they may depend
 //! on the sites (the retargeting term of eq. 4.4 does). A move's binary term
@@ -60,7 +64,6 @@ pub enum LabelOrder {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub enum CycleStrategy {
     /// Every cycle tries every label (BVZ 2001).
-    #[default]
     Full,
     /// After a cycle that lowered the energy, the next cycle tries only the labels whose move
     /// succeeded in it; when such a cycle finds nothing, a full cycle follows, and the solve ends
@@ -69,21 +72,47 @@ pub enum CycleStrategy {
     /// benchmark grids (same final labellings there), but it may also take a longer path to a
     /// different local minimum (more moves on the retargeting-shaped benchmark).
     Adaptive,
+    /// GCO's "strategic" expansion (`expansion(-1)` in GCO 3.0): labels whose move fails leave
+    /// the current queue; when fewer than half of a pass's moves succeed, the next passes focus
+    /// on the successful ones in a smaller queue, and when a pass of a queue succeeds nowhere the
+    /// labels set aside in the enclosing queue are tried again. The solve ends when the outermost
+    /// queue has a pass without success, so the result is a local minimum of every expansion
+    /// move. Together with [`TieBreak::FewestAlpha`] and [`LabelOrder::Sequential`] it takes
+    /// exactly GCO's sequence of moves. The default: on the `mrf_grid_v1` benchmark problems it
+    /// reaches GCO's energies, and on the retargeting MRFs of 4.4 it needs about half the moves
+    /// of [`CycleStrategy::Full`] (most labels are never used there, and their moves are not
+    /// retried until the used ones settle).
+    #[default]
+    Queue,
+}
+
+/// Which of several equally good cuts an expansion move applies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum TieBreak {
+    /// Switch every site that some minimum cut switches (the largest α region).
+    #[default]
+    MostAlpha,
+    /// Switch only the sites that every minimum cut switches (GCO's choice: sites its max-flow
+    /// leaves free keep their labels).
+    FewestAlpha,
 }
 
 /// Options of [`alpha_expansion`] and [`AlphaExpansion::solve`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct AlphaExpansionOptions {
-    /// Maximum number of cycles (one expansion move per label each) of the graph-cut
+    /// Maximum number of cycles (passes over the labels of the current schedule) of the graph-cut
     /// optimisation of thesis eq. 4.3 (section 4.2.2). Default 100: alpha-expansion typically
     /// converges in 2–8 cycles, so the limit only bounds pathological runs (GCO's `expansion()`
     /// runs until convergence). 0 returns the initial labelling.
     pub max_cycles: usize,
     /// Order of the labels within a cycle. Default [`LabelOrder::Sequential`].
     pub label_order: LabelOrder,
-    /// Which labels each cycle tries. Default [`CycleStrategy::Full`].
+    /// Which labels each cycle tries. Default [`CycleStrategy::Queue`].
     pub cycles: CycleStrategy,
+    /// Which minimum cut a move applies when several are optimal. Default
+    /// [`TieBreak::MostAlpha`].
+    pub ties: TieBreak,
     /// Finite value that replaces +∞ costs inside the moves (floating-point energies only).
     /// It must exceed the largest finite energy of a labelling you care about; keep it well below
     /// 1e15 so that f64 sums still resolve the finite costs. Default 1e9 (the retargeting energy
@@ -97,7 +126,8 @@ impl Default for AlphaExpansionOptions {
         AlphaExpansionOptions {
             max_cycles: 100,
             label_order: LabelOrder::Sequential,
-            cycles: CycleStrategy::Full,
+            cycles: CycleStrategy::Queue,
+            ties: TieBreak::MostAlpha,
             infinite_cost: 1e9,
         }
     }
@@ -365,6 +395,7 @@ struct EdgeTerm<C> {
 const TERM_CHUNK: usize = 256;
 
 /// What one expansion move did.
+#[derive(Debug, Clone, Copy)]
 struct MoveOutcome<C> {
     /// The (clamped) energy after the move, when it lowered the energy.
     accepted: Option<C>,
@@ -372,10 +403,37 @@ struct MoveOutcome<C> {
     truncated: usize,
 }
 
-/// Reusable alpha-expansion solver: keeps the max-flow graph and scratch buffers between moves
+/// Reusable alpha-expansion solver: keeps the max-flow graphs and scratch buffers between moves
 /// and between solves (the precompute / solve split for repeated retargeting runs).
+///
+/// **Parallel moves.** With T rayon threads (T > 1), the next T moves of the schedule are solved
+/// at once, each on its own graph, against the same labelling; their outcomes are then taken in
+/// schedule order up to the first move that lowers the energy, which is applied, and the moves
+/// after it are discarded and solved again from the new labelling. Every move that is used was
+/// therefore solved from exactly the labelling the sequential algorithm would have given it, so
+/// the result (labels, energy, cycles, move counts) is identical for every thread count; only
+/// the time changes. This pays because most moves fail once the labelling is near a local
+/// minimum (every move of the final, confirming cycle fails), and costs little otherwise: a
+/// discarded move ran on an otherwise idle core. With one thread, moves run one at a time and
+/// each move's binary terms are computed in parallel chunks instead.
 #[derive(Debug, Clone, Default)]
 pub struct AlphaExpansion<C: Capacity> {
+    /// Incident edges of each site: `incident[incident_start[p]..incident_start[p + 1]]`.
+    incidence: Incidence,
+    /// One move's graph and scratch buffers per concurrently solved move.
+    workers: Vec<MoveWorker<C>>,
+}
+
+/// Site → incident edges.
+#[derive(Debug, Clone, Default)]
+struct Incidence {
+    start: Vec<u32>,
+    list: Vec<u32>,
+}
+
+/// The graph and buffers of one expansion move.
+#[derive(Debug, Clone, Default)]
+struct MoveWorker<C: Capacity> {
     graph: Graph<C>,
     /// Graph node of each site in the current move, or `u32::MAX` for sites already labelled α.
     var_of: Vec<u32>,
@@ -383,34 +441,197 @@ pub struct AlphaExpansion<C: Capacity> {
     site_of: Vec<u32>,
     /// Accumulated unary coefficient of each graph node: cost(switch) − cost(keep).
     tdelta: Vec<C>,
-    /// Sites a move switches to α.
+    /// Sites the move switches to α.
     switched: Vec<u32>,
     /// Per site: switched by the current move.
     is_switched: Vec<bool>,
-    /// Incident edges of each site: `incident[incident_start[p]..incident_start[p + 1]]`.
-    incident_start: Vec<u32>,
-    incident: Vec<u32>,
-    /// One slot per entry of `incident`: the move's binary term of that edge when it joins two
-    /// graph nodes and is stored at its first site.
+    /// One slot per entry of the incidence list: the move's binary term of that edge when it
+    /// joins two graph nodes and is stored at its first site.
     terms: Vec<EdgeTerm<C>>,
 }
 
 const FIXED: u32 = u32::MAX;
 
+/// One scheduled move as the sequential algorithm sees it.
+#[derive(Debug, Clone, Copy)]
+struct Step<C> {
+    alpha: u32,
+    /// Solved by a graph cut (false: skipped, known to fail).
+    solved: bool,
+    outcome: MoveOutcome<C>,
+}
+
+/// Which labels are tried next: the cycle logic of [`CycleStrategy`], fed with the outcome of
+/// each move in order. [`Schedule::upcoming`] lists the moves of the current pass in the order
+/// they will run if every one of them fails, which is what the parallel moves speculate on.
+#[derive(Debug)]
+struct Schedule {
+    strategy: CycleStrategy,
+    order: Vec<u32>,
+    rng: Option<rand_chacha::ChaCha8Rng>,
+    /// Passes started (cycles).
+    passes: usize,
+    in_pass: bool,
+    // Full / Adaptive sweeps.
+    pos: usize,
+    improved: bool,
+    full_cycle: bool,
+    succeeded: Vec<bool>,
+    succeeded_now: Vec<bool>,
+    // Queue (GCO's strategic expansion): the stack of queue sizes, the next unchecked label and
+    // the end of the current pass's queue.
+    stack: Vec<usize>,
+    next: usize,
+    pass_start: usize,
+    queue_end: usize,
+}
+
+impl Schedule {
+    fn new(options: &AlphaExpansionOptions, num_labels: usize) -> Schedule {
+        let mut order: Vec<u32> = (0..num_labels as u32).collect();
+        let mut rng = match options.label_order {
+            LabelOrder::Random { seed } => Some(rand_chacha::ChaCha8Rng::seed_from_u64(seed)),
+            LabelOrder::Sequential => None,
+        };
+        if options.cycles == CycleStrategy::Queue {
+            // GCO permutes the label table once per solve.
+            if let Some(rng) = rng.as_mut() {
+                order.shuffle(rng);
+            }
+        }
+        Schedule {
+            strategy: options.cycles,
+            order,
+            rng,
+            passes: 0,
+            in_pass: false,
+            pos: 0,
+            improved: false,
+            full_cycle: true,
+            succeeded: vec![true; num_labels],
+            succeeded_now: vec![false; num_labels],
+            stack: vec![num_labels],
+            next: 0,
+            pass_start: 0,
+            queue_end: 0,
+        }
+    }
+
+    /// Starts a pass if none is running. Returns false when the schedule is finished.
+    fn begin_pass(&mut self, max_passes: usize) -> bool {
+        if self.in_pass {
+            return true;
+        }
+        if self.passes >= max_passes {
+            return false;
+        }
+        match self.strategy {
+            CycleStrategy::Full | CycleStrategy::Adaptive => {
+                if let Some(rng) = self.rng.as_mut() {
+                    self.order.shuffle(rng);
+                }
+                self.pos = 0;
+                self.improved = false;
+                self.succeeded_now.fill(false);
+            }
+            CycleStrategy::Queue => {
+                let Some(&end) = self.stack.last() else { return false };
+                self.queue_end = end;
+                self.pass_start = self.next;
+            }
+        }
+        self.passes += 1;
+        self.in_pass = true;
+        true
+    }
+
+    /// The remaining moves of the current pass, in the order they run if all of them fail, and
+    /// whether each one is skipped by the cycle rule (not by the solver's own knowledge).
+    fn upcoming(&self, out: &mut Vec<(u32, bool)>) {
+        out.clear();
+        match self.strategy {
+            CycleStrategy::Full | CycleStrategy::Adaptive => {
+                for &a in &self.order[self.pos..] {
+                    out.push((a, !self.full_cycle && !self.succeeded[a as usize]));
+                }
+            }
+            CycleStrategy::Queue => {
+                // A failing label is swapped with the last unchecked one, which runs next.
+                if self.next < self.queue_end {
+                    out.push((self.order[self.next], false));
+                    for i in (self.next + 1..self.queue_end).rev() {
+                        out.push((self.order[i], false));
+                    }
+                }
+            }
+        }
+    }
+
+    /// Records the outcome of the next move of the pass. Returns true when the pass ended.
+    fn record(&mut self, alpha: u32, success: bool) -> bool {
+        match self.strategy {
+            CycleStrategy::Full | CycleStrategy::Adaptive => {
+                debug_assert_eq!(self.order[self.pos], alpha);
+                self.pos += 1;
+                if success {
+                    self.improved = true;
+                    self.succeeded_now[alpha as usize] = true;
+                }
+                self.pos == self.order.len()
+            }
+            CycleStrategy::Queue => {
+                debug_assert_eq!(self.order[self.next], alpha);
+                if success {
+                    self.next += 1;
+                } else {
+                    self.queue_end -= 1;
+                    self.order.swap(self.next, self.queue_end);
+                }
+                self.next >= self.queue_end
+            }
+        }
+    }
+
+    /// Closes the pass that just ended. Returns true when the labelling is known to be a local
+    /// minimum of every expansion move (the schedule is finished).
+    fn end_pass(&mut self) -> bool {
+        self.in_pass = false;
+        match self.strategy {
+            CycleStrategy::Full | CycleStrategy::Adaptive => {
+                if !self.improved {
+                    if !self.full_cycle {
+                        self.full_cycle = true;
+                        return false;
+                    }
+                    return true;
+                }
+                self.full_cycle = self.strategy == CycleStrategy::Full;
+                std::mem::swap(&mut self.succeeded, &mut self.succeeded_now);
+                false
+            }
+            CycleStrategy::Queue => {
+                let top = *self.stack.last().expect("a pass runs on a queue");
+                if self.next == self.pass_start {
+                    // Nothing succeeded: go back to the unchecked labels of the enclosing queue.
+                    self.next = top;
+                    self.stack.pop();
+                } else {
+                    if self.queue_end < top / 2 {
+                        // Few succeeded: focus on them in a new, smaller queue.
+                        self.stack.push(self.queue_end);
+                    }
+                    self.next = 0;
+                }
+                self.stack.is_empty()
+            }
+        }
+    }
+}
+
 impl<C: Capacity> AlphaExpansion<C> {
     /// An empty solver; buffers grow on the first solve.
     pub fn new() -> Self {
-        AlphaExpansion {
-            graph: Graph::new(0, 0),
-            var_of: Vec::new(),
-            site_of: Vec::new(),
-            tdelta: Vec::new(),
-            switched: Vec::new(),
-            is_switched: Vec::new(),
-            incident_start: Vec::new(),
-            incident: Vec::new(),
-            terms: Vec::new(),
-        }
+        AlphaExpansion { incidence: Incidence::default(), workers: Vec::new() }
     }
 
     /// Runs alpha-expansion from `init` (`#sites` labels, each < L).
@@ -440,73 +661,77 @@ impl<C: Capacity> AlphaExpansion<C> {
         let hard = C::from_f64(options.infinite_cost);
         let num_labels = energy.num_labels;
         let initial_energy = energy_of(energy, init)?;
-        self.build_incidence(energy.num_sites, energy.edges);
+        self.incidence.build(energy.num_sites, energy.edges);
+        let threads = rayon::current_num_threads().clamp(1, num_labels.max(1));
+        if self.workers.len() < threads {
+            self.workers.resize_with(threads, MoveWorker::default);
+        }
         let mut labels = init.to_vec();
         let mut current = energy.energy_clamped(&labels, hard)?;
 
-        let mut order: Vec<u32> = (0..num_labels as u32).collect();
-        let mut rng = match options.label_order {
-            LabelOrder::Random { seed } => Some(rand_chacha::ChaCha8Rng::seed_from_u64(seed)),
-            LabelOrder::Sequential => None,
-        };
+        let mut schedule = Schedule::new(options, num_labels);
         // `known_optimal[α] == Some(k)`: the α-move was optimal (failed, or just succeeded
         // without truncation) when `k` moves had been accepted; while no other move is accepted
         // it cannot lower the energy, so it is skipped.
         let mut known_optimal: Vec<Option<usize>> = vec![None; num_labels];
         let mut cycle_energies = Vec::new();
-        let (mut cycles, mut moves, mut accepted_moves, mut truncated_terms) = (0, 0, 0, 0);
+        let (mut moves, mut accepted_moves, mut truncated_terms) = (0, 0, 0);
         let mut termination = Termination::MaxCycles;
-        // Adaptive cycles: labels whose move succeeded in the last cycle are retried first,
-        // and a full cycle confirms convergence.
-        let mut succeeded: Vec<bool> = vec![true; num_labels];
-        let mut succeeded_now: Vec<bool> = vec![false; num_labels];
-        let mut full_cycle = true;
-        while cycles < options.max_cycles {
-            cycles += 1;
-            if let Some(rng) = rng.as_mut() {
-                order.shuffle(rng);
-            }
-            let mut improved = false;
-            succeeded_now.fill(false);
-            for &alpha in &order {
-                if known_optimal[alpha as usize] == Some(accepted_moves)
-                    || (!full_cycle && !succeeded[alpha as usize])
-                {
-                    continue;
+        let mut upcoming = Vec::new();
+        let mut steps = Vec::new();
+        while schedule.begin_pass(options.max_cycles) {
+            schedule.upcoming(&mut upcoming);
+            let skip =
+                |alpha: u32, by_rule: bool| by_rule || known_optimal[alpha as usize] == Some(accepted_moves);
+            let accepted_by = self.first_accepted(
+                energy,
+                &labels,
+                &upcoming,
+                &skip,
+                current,
+                hard,
+                options.ties,
+                threads,
+                &mut steps,
+            )?;
+            let mut pass_ended = false;
+            for step in &steps {
+                if step.solved {
+                    moves += 1;
                 }
-                moves += 1;
-                let outcome = self.expand(energy, &mut labels, alpha, current, hard)?;
-                truncated_terms += outcome.truncated;
-                match outcome.accepted {
+                truncated_terms += step.outcome.truncated;
+                let success = step.outcome.accepted.is_some();
+                match step.outcome.accepted {
                     Some(e) => {
                         current = e;
                         accepted_moves += 1;
-                        improved = true;
-                        succeeded_now[alpha as usize] = true;
-                        known_optimal[alpha as usize] =
-                            if outcome.truncated == 0 { Some(accepted_moves) } else { None };
+                        known_optimal[step.alpha as usize] =
+                            if step.outcome.truncated == 0 { Some(accepted_moves) } else { None };
                     }
-                    None => known_optimal[alpha as usize] = Some(accepted_moves),
+                    None if step.solved => known_optimal[step.alpha as usize] = Some(accepted_moves),
+                    None => {}
+                }
+                pass_ended = schedule.record(step.alpha, success);
+            }
+            if let (Some(w), Some(step)) = (accepted_by, steps.last()) {
+                for &p in &self.workers[w].switched {
+                    labels[p as usize] = step.alpha;
                 }
             }
-            cycle_energies.push(current);
-            if !improved {
-                if !full_cycle {
-                    full_cycle = true;
-                    continue;
+            if pass_ended || upcoming.is_empty() {
+                cycle_energies.push(current);
+                if schedule.end_pass() {
+                    termination = Termination::Converged;
+                    break;
                 }
-                termination = Termination::Converged;
-                break;
             }
-            full_cycle = options.cycles == CycleStrategy::Full;
-            std::mem::swap(&mut succeeded, &mut succeeded_now);
         }
         let final_energy = energy_of(energy, &labels)?;
         Ok(AlphaExpansionResult {
             labels,
             energy: final_energy,
             initial_energy,
-            cycles,
+            cycles: schedule.passes,
             cycle_energies,
             moves,
             accepted_moves,
@@ -516,45 +741,135 @@ impl<C: Capacity> AlphaExpansion<C> {
         })
     }
 
-    /// Site → incident edges, for scoring moves by their energy change.
-    fn build_incidence(&mut self, num_sites: usize, edges: &[[u32; 2]]) {
-        self.incident_start.clear();
-        self.incident_start.resize(num_sites + 1, 0);
+    /// Runs the moves of `upcoming` in order, `threads` at a time, until one lowers the energy.
+    /// Fills `steps` with the moves up to and including that one (all of them when none does)
+    /// and returns the worker that holds the accepted move's switched sites.
+    #[allow(clippy::too_many_arguments)]
+    fn first_accepted<D, V>(
+        &mut self,
+        energy: &MrfEnergy<'_, C, D, V>,
+        labels: &[u32],
+        upcoming: &[(u32, bool)],
+        skip: &impl Fn(u32, bool) -> bool,
+        current: C,
+        hard: C,
+        ties: TieBreak,
+        threads: usize,
+        steps: &mut Vec<Step<C>>,
+    ) -> Result<Option<usize>>
+    where
+        D: Fn(usize, usize) -> C + Sync,
+        V: Fn(usize, usize, usize, usize) -> C + Sync,
+    {
+        steps.clear();
+        let incidence = &self.incidence;
+        let mut i = 0;
+        let mut batch: Vec<(usize, u32)> = Vec::with_capacity(threads);
+        while i < upcoming.len() {
+            // The next `threads` moves that are not skipped.
+            batch.clear();
+            let mut j = i;
+            while j < upcoming.len() && batch.len() < threads {
+                let (alpha, by_rule) = upcoming[j];
+                if !skip(alpha, by_rule) {
+                    batch.push((j, alpha));
+                }
+                j += 1;
+            }
+            let outcomes: Vec<Result<MoveOutcome<C>>> = if batch.len() <= 1 {
+                batch
+                    .iter()
+                    .map(|&(_, alpha)| {
+                        self.workers[0].expand(energy, incidence, labels, alpha, current, hard, ties, true)
+                    })
+                    .collect()
+            } else {
+                self.workers[..batch.len()]
+                    .par_iter_mut()
+                    .zip(batch.par_iter())
+                    .map(|(w, &(_, alpha))| {
+                        w.expand(energy, incidence, labels, alpha, current, hard, ties, false)
+                    })
+                    .collect()
+            };
+            let mut outcomes = outcomes.into_iter();
+            let mut b = 0;
+            for k in i..j {
+                let (alpha, by_rule) = upcoming[k];
+                if b < batch.len() && batch[b].0 == k {
+                    let outcome = outcomes.next().expect("one outcome per solved move")?;
+                    steps.push(Step { alpha, solved: true, outcome });
+                    if outcome.accepted.is_some() {
+                        return Ok(Some(b));
+                    }
+                    b += 1;
+                } else {
+                    debug_assert!(skip(alpha, by_rule));
+                    steps.push(Step {
+                        alpha,
+                        solved: false,
+                        outcome: MoveOutcome { accepted: None, truncated: 0 },
+                    });
+                }
+            }
+            i = j;
+        }
+        Ok(None)
+    }
+}
+
+impl Incidence {
+    /// Site → incident edges, for building moves and scoring their energy change.
+    fn build(&mut self, num_sites: usize, edges: &[[u32; 2]]) {
+        self.start.clear();
+        self.start.resize(num_sites + 1, 0);
         for &[p, q] in edges {
-            self.incident_start[p as usize + 1] += 1;
-            self.incident_start[q as usize + 1] += 1;
+            self.start[p as usize + 1] += 1;
+            self.start[q as usize + 1] += 1;
         }
         for p in 0..num_sites {
-            self.incident_start[p + 1] += self.incident_start[p];
+            self.start[p + 1] += self.start[p];
         }
-        self.incident.clear();
-        self.incident.resize(2 * edges.len(), 0);
+        self.list.clear();
+        self.list.resize(2 * edges.len(), 0);
         // Fill from the back so each site's list ends up in edge order.
-        let mut fill = self.incident_start[1..].to_vec();
+        let mut fill = self.start[1..].to_vec();
         for (k, &[p, q]) in edges.iter().enumerate().rev() {
             for s in [p as usize, q as usize] {
                 fill[s] -= 1;
-                self.incident[fill[s] as usize] = k as u32;
+                self.list[fill[s] as usize] = k as u32;
             }
         }
     }
 
-    /// One α-expansion move from `labels` (energy `current`, clamped). Applies it when it lowers
-    /// the energy. Among the optimal moves it takes the one that switches the most sites to α
-    /// (every node the source cannot reach in the residual graph), as BVZ and GCO do.
+    #[inline]
+    fn of(&self, p: usize) -> &[u32] {
+        &self.list[self.start[p] as usize..self.start[p + 1] as usize]
+    }
+}
+
+impl<C: Capacity> MoveWorker<C> {
+    /// One α-expansion move from `labels` (energy `current`, clamped). When it lowers the energy,
+    /// returns the new energy and leaves the sites to switch in `self.switched`; `labels` is not
+    /// changed. Among the optimal moves, `ties` picks the one switching the most or the fewest
+    /// sites to α.
     ///
     /// Only sites that can switch become graph nodes: sites already labelled α and sites where
     /// D(α) = +∞ (α forbidden) keep their labels, and only the edges at switchable sites are
     /// visited. The move's energy is `current + flow − Σ sink capacities` (the all-keep cut
     /// costs exactly the sink capacities and has energy `current`), or the exact energy change
     /// when that is inaccurate.
+    #[allow(clippy::too_many_arguments)]
     fn expand<D, V>(
         &mut self,
         energy: &MrfEnergy<'_, C, D, V>,
-        labels: &mut [u32],
+        incidence: &Incidence,
+        labels: &[u32],
         alpha: u32,
         current: C,
         hard: C,
+        ties: TieBreak,
+        parallel_terms: bool,
     ) -> Result<MoveOutcome<C>>
     where
         D: Fn(usize, usize) -> C + Sync,
@@ -590,13 +905,13 @@ impl<C: Capacity> AlphaExpansion<C> {
         if num_vars == 0 {
             return Ok(MoveOutcome { accepted: None, truncated: 0 });
         }
-        // The binary terms of the move: per site chunk in parallel (each chunk writes its own
-        // sites' `tdelta` and `terms` slots), then added to the graph in site order.
-        let truncated = self.compute_terms(energy, labels, alpha, hard)?;
+        // The binary terms of the move (per site chunk in parallel when asked: each chunk writes
+        // its own sites' `tdelta` and `terms` slots), then added to the graph in site order.
+        let truncated = self.compute_terms(energy, incidence, labels, alpha, hard, parallel_terms)?;
         self.graph.reset(num_vars);
         for v in 0..num_vars {
             let p = self.site_of[v] as usize;
-            for i in self.incident_start[p] as usize..self.incident_start[p + 1] as usize {
+            for i in incidence.start[p] as usize..incidence.start[p + 1] as usize {
                 let t = self.terms[i];
                 if t.vs == u32::MAX {
                     continue;
@@ -622,10 +937,16 @@ impl<C: Capacity> AlphaExpansion<C> {
         }
         let flow = self.graph.maxflow();
 
-        // Nodes the source cannot reach switch to α (free nodes too: ties go to α).
+        // Sink side = switch to α. Every node the source cannot reach is on the sink side of a
+        // minimum cut, and so is every node that reaches the sink; the nodes in neither set
+        // (free) are ties.
+        let free_to = match ties {
+            TieBreak::MostAlpha => Segment::Sink,
+            TieBreak::FewestAlpha => Segment::Source,
+        };
         self.switched.clear();
         for (v, &p) in self.site_of.iter().enumerate() {
-            if self.graph.what_segment_or(v, Segment::Sink) == Segment::Sink {
+            if self.graph.what_segment_or(v, free_to) == Segment::Sink {
                 self.switched.push(p);
             }
         }
@@ -638,13 +959,10 @@ impl<C: Capacity> AlphaExpansion<C> {
             // The cut minimised an upper bound (truncation), or the flow is far larger than the
             // energy (with floats, +∞ costs replaced by `infinite_cost` flow through the graph,
             // leaving rounding errors): score the move by its exact energy change instead.
-            current + self.energy_change(energy, labels, alpha, hard)?
+            current + self.energy_change(energy, incidence, labels, alpha, hard)?
         };
         if !lower(new_energy, current) {
             return Ok(MoveOutcome { accepted: None, truncated });
-        }
-        for &p in &self.switched {
-            labels[p as usize] = alpha;
         }
         Ok(MoveOutcome { accepted: Some(new_energy), truncated })
     }
@@ -662,9 +980,11 @@ impl<C: Capacity> AlphaExpansion<C> {
     fn compute_terms<D, V>(
         &mut self,
         energy: &MrfEnergy<'_, C, D, V>,
+        incidence: &Incidence,
         labels: &[u32],
         alpha: u32,
         hard: C,
+        parallel: bool,
     ) -> Result<usize>
     where
         D: Fn(usize, usize) -> C + Sync,
@@ -673,10 +993,10 @@ impl<C: Capacity> AlphaExpansion<C> {
         let a = alpha as usize;
         let n = energy.num_sites;
         self.terms.clear();
-        self.terms.resize(self.incident.len(), EdgeTerm { vs: u32::MAX, ..Default::default() });
+        self.terms.resize(incidence.list.len(), EdgeTerm { vs: u32::MAX, ..Default::default() });
         let var_of = &self.var_of;
-        let incident = &self.incident;
-        let incident_start = &self.incident_start;
+        let incident = &incidence.list;
+        let incident_start = &incidence.start;
         // One chunk of sites: its variables are contiguous (numbered in site order), and so are
         // its `terms` slots.
         let chunk = |p0: usize, terms: &mut [EdgeTerm<C>], tdelta: &mut [C]| -> Result<usize> {
@@ -743,7 +1063,7 @@ impl<C: Capacity> AlphaExpansion<C> {
             }
             Ok(truncated)
         };
-        if self.site_of.len() < 2 * TERM_CHUNK {
+        if !parallel || self.site_of.len() < 2 * TERM_CHUNK {
             return chunk_all(n, &mut self.terms, &mut self.tdelta, incident_start, var_of, &chunk);
         }
         // Split `terms` and `tdelta` at the chunk boundaries.
@@ -770,6 +1090,7 @@ impl<C: Capacity> AlphaExpansion<C> {
     fn energy_change<D, V>(
         &mut self,
         energy: &MrfEnergy<'_, C, D, V>,
+        incidence: &Incidence,
         labels: &[u32],
         alpha: u32,
         hard: C,
@@ -789,7 +1110,7 @@ impl<C: Capacity> AlphaExpansion<C> {
             let p = p as usize;
             delta += energy.unary_clamped(p, alpha as usize, hard)?
                 - energy.unary_clamped(p, labels[p] as usize, hard)?;
-            for &k in &self.incident[self.incident_start[p] as usize..self.incident_start[p + 1] as usize] {
+            for &k in incidence.of(p) {
                 let [s, t] = energy.edges[k as usize];
                 let (s, t) = (s as usize, t as usize);
                 let other = if s == p { t } else { s };

@@ -25,7 +25,7 @@ pub mod retarget;
 
 pub use alpha_expansion::{
     AlphaExpansion, AlphaExpansionOptions, AlphaExpansionResult, CycleStrategy, LabelOrder, MrfEnergy,
-    Termination, alpha_expansion, energy_of,
+    Termination, TieBreak, alpha_expansion, energy_of,
 };
 pub use error::{Error, Result};
 pub use maxflow::{Capacity, Graph, Segment};

@@ -2,7 +2,7 @@
 //! alpha-expansion against brute force, and the `mrf_grid_v1` format.
 
 use motif_retarget::alpha_expansion::{
-    AlphaExpansion, AlphaExpansionOptions, CycleStrategy, LabelOrder, MrfEnergy, Termination,
+    AlphaExpansion, AlphaExpansionOptions, CycleStrategy, LabelOrder, MrfEnergy, Termination, TieBreak,
     alpha_expansion, dense_unary, energy_of,
 };
 use motif_retarget::maxflow::{Graph, Segment};
@@ -431,8 +431,10 @@ fn alpha_expansion_brute_force() {
         let t = Tiny::random(&mut rng, kind, n, labels);
         let init: Vec<u32> = (0..n).map(|_| rng.random_range(0..labels as u32)).collect();
         let order = if seed % 2 == 0 { LabelOrder::Sequential } else { LabelOrder::Random { seed } };
-        let cycles = if seed % 4 < 2 { CycleStrategy::Full } else { CycleStrategy::Adaptive };
-        let options = AlphaExpansionOptions { label_order: order, cycles, ..Default::default() };
+        let cycles =
+            [CycleStrategy::Full, CycleStrategy::Adaptive, CycleStrategy::Queue][(seed / 2 % 3) as usize];
+        let ties = if seed % 5 == 0 { TieBreak::FewestAlpha } else { TieBreak::MostAlpha };
+        let options = AlphaExpansionOptions { label_order: order, cycles, ties, ..Default::default() };
         let r = alpha_expansion(&t.energy(), &init, &options).unwrap();
         let what = format!("seed {seed} {kind:?} n {n} L {labels}");
 
@@ -617,11 +619,12 @@ fn best_move_by_dinic(p: &GridProblem, labels: &[u32], alpha: u32) -> i64 {
 /// expansion move, each move solved independently by Dinic.
 #[test]
 fn large_grid_result_is_expansion_local_minimum_by_dinic() {
-    for (dims, labels, conn, seed) in
-        [([12, 12, 8], 5, Connectivity::Six, 11), ([10, 10, 12], 4, Connectivity::TwentySix, 12)]
-    {
+    for (dims, labels, conn, seed, cycles) in [
+        ([12, 12, 8], 5, Connectivity::Six, 11, CycleStrategy::Full),
+        ([10, 10, 12], 4, Connectivity::TwentySix, 12, CycleStrategy::Queue),
+    ] {
         let p = generate_grid(dims, labels, conn, seed);
-        let s = p.solve(&AlphaExpansionOptions::default()).unwrap();
+        let s = p.solve(&AlphaExpansionOptions { cycles, ..Default::default() }).unwrap();
         assert_eq!(s.termination, Termination::Converged);
         assert!(s.energy < s.initial_energy);
         for alpha in 0..labels as u32 {
@@ -629,6 +632,52 @@ fn large_grid_result_is_expansion_local_minimum_by_dinic() {
             assert!(gain >= 0, "{dims:?}: the {alpha}-expansion still lowers the energy by {}", -gain);
         }
     }
+}
+
+/// Solving several moves at once (one per thread) and keeping them up to the first success gives
+/// exactly the sequential algorithm's result, move for move, with every cycle strategy.
+#[test]
+fn parallel_moves_give_the_sequential_result() {
+    let p = generate_grid([12, 10, 6], 7, Connectivity::TwentySix, 5);
+    for cycles in [CycleStrategy::Full, CycleStrategy::Adaptive, CycleStrategy::Queue] {
+        let options = AlphaExpansionOptions { cycles, ..Default::default() };
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| p.solve(&options).unwrap())
+        };
+        let one = run(1);
+        assert!(one.accepted_moves > 1 && one.energy < one.initial_energy, "{cycles:?}: a non-trivial solve");
+        for threads in [2, 3, 5] {
+            let many = run(threads);
+            assert_eq!(many.labels_flat, one.labels_flat, "{cycles:?}, {threads} threads: labels");
+            assert_eq!(
+                (many.energy, many.cycles, many.moves, many.accepted_moves),
+                (one.energy, one.cycles, one.moves, one.accepted_moves),
+                "{cycles:?}, {threads} threads: energy, cycles, moves, accepted moves"
+            );
+        }
+    }
+}
+
+/// With several optimal cuts, `MostAlpha` switches every site some optimal cut switches and
+/// `FewestAlpha` only those every optimal cut switches.
+#[test]
+fn tie_break_picks_the_largest_or_smallest_optimal_move() {
+    // Site 0 gains 5 by switching to label 1; sites 1 and 2 (joined by an edge) are indifferent,
+    // and switching one but not the other costs 3.
+    let edges = [[1u32, 2]];
+    let unary = [5i64, 0, /**/ 0, 0, /**/ 0, 0];
+    let energy =
+        MrfEnergy::new(3, 2, &edges, dense_unary(&unary, 2), |_, _, a, b| if a == b { 0 } else { 3 });
+    let solve = |ties| {
+        let options = AlphaExpansionOptions { ties, ..Default::default() };
+        alpha_expansion(&energy, &[0, 0, 0], &options).unwrap()
+    };
+    let most = solve(TieBreak::MostAlpha);
+    let fewest = solve(TieBreak::FewestAlpha);
+    assert_eq!((most.energy, fewest.energy), (0, 0));
+    assert_eq!(most.labels, vec![1, 1, 1]);
+    assert_eq!(fewest.labels, vec![1, 0, 0]);
 }
 
 #[test]

@@ -1,10 +1,10 @@
 //! `motif mrf`: solve and generate grid MRF problems (`mrf_grid_v1`).
 
 use anyhow::Context;
-use motif_retarget::alpha_expansion::{AlphaExpansionOptions, CycleStrategy, LabelOrder};
+use motif_retarget::alpha_expansion::{AlphaExpansionOptions, CycleStrategy, LabelOrder, TieBreak};
 use motif_retarget::{Connectivity, generate_grid, solve_grid_file};
 
-use crate::cli::{CyclesArg, GlobalArgs, LabelOrderArg, MrfGenerateArgs, MrfSolveArgs};
+use crate::cli::{CyclesArg, GlobalArgs, LabelOrderArg, MrfGenerateArgs, MrfSolveArgs, TiesArg};
 use crate::output::{bad_input, check_output, maybe_json};
 
 pub fn solve(a: MrfSolveArgs, g: &GlobalArgs) -> anyhow::Result<()> {
@@ -20,6 +20,11 @@ pub fn solve(a: MrfSolveArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         cycles: match a.cycles {
             CyclesArg::Full => CycleStrategy::Full,
             CyclesArg::Adaptive => CycleStrategy::Adaptive,
+            CyclesArg::Queue => CycleStrategy::Queue,
+        },
+        ties: match a.ties {
+            TiesArg::MostAlpha => TieBreak::MostAlpha,
+            TiesArg::FewestAlpha => TieBreak::FewestAlpha,
         },
         ..Default::default()
     };
