@@ -51,15 +51,19 @@ impl Surface {
         let cap_abs = cap * self.diagonal;
         let cap2 = cap_abs * cap_abs;
         let (mut max, mut sum, mut n) = (0.0f64, 0.0f64, 0usize);
+        // Distances are collected in point order and summed sequentially, so the mean does not
+        // depend on how rayon split the work (a parallel float sum would, in the last bits).
+        let mut dists: Vec<f64> = Vec::with_capacity(block.min(points.len()));
         for block in points.chunks(block.max(1)) {
-            let (bmax, bsum) = block
+            block
                 .par_iter()
                 .map(|&p| {
                     let q = transform_point(m, p);
-                    let d = self.bvh.closest(q, cap2, SLACK * self.diagonal).map_or(cap_abs, |h| h.d2.sqrt());
-                    (d, d)
+                    self.bvh.closest(q, cap2, SLACK * self.diagonal).map_or(cap_abs, |h| h.d2.sqrt())
                 })
-                .reduce(|| (0.0, 0.0), |a, b| (a.0.max(b.0), a.1 + b.1));
+                .collect_into_vec(&mut dists);
+            let bmax = dists.iter().copied().fold(0.0, f64::max);
+            let bsum: f64 = dists.iter().sum();
             max = max.max(bmax);
             sum += bsum;
             n += block.len();

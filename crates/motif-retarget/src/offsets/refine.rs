@@ -265,34 +265,42 @@ impl<'a> Prober<'a> {
 
     fn accumulate(&self, moving: &[usize], t: Point3, gate: f64) -> Accum {
         let f = self.features;
-        moving
-            .par_iter()
-            .fold(Accum::default, |mut acc, &i| {
-                let p = f.dense[i];
-                let s = [p[0] + t[0], p[1] + t[1], p[2] + t[2]];
-                let Some((j, _)) = self.nearest_within(s, gate) else {
-                    return acc;
-                };
-                let nq = f.dense_normals[j];
-                if dot(f.dense_normals[i], nq) < OVERLAP_MIN_NORMAL_DOT {
-                    return acc;
-                }
-                let r = sub(f.dense[j], s);
-                let d = dot(r, nq);
-                for a in 0..3 {
-                    for b in 0..3 {
-                        acc.a[a][b] += nq[a] * nq[b];
+        // Fixed chunks summed in order: the sums (and so the refined offsets) do not depend on
+        // how rayon schedules the work, bit for bit.
+        let partial: Vec<Accum> = moving
+            .par_chunks(ACCUM_CHUNK)
+            .map(|chunk| {
+                chunk.iter().fold(Accum::default(), |mut acc, &i| {
+                    let p = f.dense[i];
+                    let s = [p[0] + t[0], p[1] + t[1], p[2] + t[2]];
+                    let Some((j, _)) = self.nearest_within(s, gate) else {
+                        return acc;
+                    };
+                    let nq = f.dense_normals[j];
+                    if dot(f.dense_normals[i], nq) < OVERLAP_MIN_NORMAL_DOT {
+                        return acc;
                     }
-                    acc.b[a] += nq[a] * d;
-                    acc.r[a] += r[a];
-                }
-                acc.sum_d2 += d * d;
-                acc.count += 1;
-                acc
+                    let r = sub(f.dense[j], s);
+                    let d = dot(r, nq);
+                    for a in 0..3 {
+                        for b in 0..3 {
+                            acc.a[a][b] += nq[a] * nq[b];
+                        }
+                        acc.b[a] += nq[a] * d;
+                        acc.r[a] += r[a];
+                    }
+                    acc.sum_d2 += d * d;
+                    acc.count += 1;
+                    acc
+                })
             })
-            .reduce(Accum::default, Accum::merge)
+            .collect();
+        partial.into_iter().fold(Accum::default(), Accum::merge)
     }
 }
+
+/// Points per partial sum of an ICP iteration.
+const ACCUM_CHUNK: usize = 512;
 
 /// Sums of one ICP iteration.
 #[derive(Debug, Clone, Copy, Default)]

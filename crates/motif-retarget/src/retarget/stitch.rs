@@ -214,29 +214,35 @@ fn split_t_junctions(mesh: &mut TriMesh, triangle_voxels: &mut Vec<u32>, tol: f6
             let t = mesh.triangles[f as usize];
             (t[k as usize], t[(k as usize + 1) % 3])
         };
-        // Boundary vertices, hashed on a grid of the median boundary edge length.
-        let mut lengths: Vec<f64> = boundary
-            .iter()
-            .map(|&(f, k)| {
-                let (a, b) = edge(f, k);
-                dist2(mesh.positions[a as usize], mesh.positions[b as usize]).sqrt()
-            })
-            .collect();
-        lengths.sort_unstable_by(f64::total_cmp);
-        let cell = lengths[lengths.len() / 2].max(tol * 4.0);
-        let key = |p: Point3| p.map(|c| (c / cell).floor() as i64);
-        let mut grid: HashMap<[i64; 3], Vec<u32>> = HashMap::new();
+        // Boundary vertices sorted along the axis of their largest extent; each edge looks at
+        // the vertices whose coordinate on that axis lies within its span (a grid keyed on the
+        // edge length degenerates when a few long edges meet many short ones).
         let mut seen = vec![false; mesh.positions.len()];
+        let mut verts: Vec<u32> = Vec::new();
         for &(f, k) in &boundary {
             let (a, b) = edge(f, k);
             for v in [a, b] {
                 if !std::mem::replace(&mut seen[v as usize], true) {
-                    grid.entry(key(mesh.positions[v as usize])).or_default().push(v);
+                    verts.push(v);
                 }
             }
         }
+        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        for &v in &verts {
+            let p = mesh.positions[v as usize];
+            for i in 0..3 {
+                lo[i] = lo[i].min(p[i]);
+                hi[i] = hi[i].max(p[i]);
+            }
+        }
+        let axis = (0..3).max_by(|&i, &j| (hi[i] - lo[i]).total_cmp(&(hi[j] - lo[j]))).unwrap_or(0);
+        verts.sort_unstable_by(|&u, &w| {
+            mesh.positions[u as usize][axis].total_cmp(&mesh.positions[w as usize][axis]).then(u.cmp(&w))
+        });
+        let coord: Vec<f64> = verts.iter().map(|&v| mesh.positions[v as usize][axis]).collect();
         // For every boundary edge, the boundary vertices strictly inside it, by parameter.
         let mut splits: HashMap<u32, Vec<(u8, Vec<u32>)>> = HashMap::new();
+        let mut on: Vec<(f64, u32)> = Vec::new();
         for &(f, k) in &boundary {
             let (a, b) = edge(f, k);
             let (pa, pb) = (mesh.positions[a as usize], mesh.positions[b as usize]);
@@ -245,36 +251,29 @@ fn split_t_junctions(mesh: &mut TriMesh, triangle_voxels: &mut Vec<u32>, tol: f6
             if len2 <= tol * tol {
                 continue;
             }
-            let (ka, kb) = (key(pa), key(pb));
-            let mut on: Vec<(f64, u32)> = Vec::new();
-            for x in ka[0].min(kb[0]) - 1..=ka[0].max(kb[0]) + 1 {
-                for y in ka[1].min(kb[1]) - 1..=ka[1].max(kb[1]) + 1 {
-                    for z in ka[2].min(kb[2]) - 1..=ka[2].max(kb[2]) + 1 {
-                        let Some(list) = grid.get(&[x, y, z]) else { continue };
-                        for &v in list {
-                            if v == a || v == b {
-                                continue;
-                            }
-                            let p = mesh.positions[v as usize];
-                            let s = dot(sub(p, pa), d) / len2;
-                            if s <= 0.0 || s >= 1.0 {
-                                continue;
-                            }
-                            let q = add(pa, scale(d, s));
-                            if dist2(p, q) <= tol * tol
-                                && dist2(p, pa) > tol * tol
-                                && dist2(p, pb) > tol * tol
-                            {
-                                on.push((s, v));
-                            }
-                        }
-                    }
+            let (c0, c1) = (pa[axis].min(pb[axis]) - tol, pa[axis].max(pb[axis]) + tol);
+            on.clear();
+            for (i, &v) in verts.iter().enumerate().skip(coord.partition_point(|&c| c < c0)) {
+                if coord[i] > c1 {
+                    break;
+                }
+                if v == a || v == b {
+                    continue;
+                }
+                let p = mesh.positions[v as usize];
+                let s = dot(sub(p, pa), d) / len2;
+                if s <= 0.0 || s >= 1.0 {
+                    continue;
+                }
+                let q = add(pa, scale(d, s));
+                if dist2(p, q) <= tol * tol && dist2(p, pa) > tol * tol && dist2(p, pb) > tol * tol {
+                    on.push((s, v));
                 }
             }
             if !on.is_empty() {
                 on.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
                 on.dedup_by_key(|x| x.1);
-                splits.entry(f).or_default().push((k, on.into_iter().map(|x| x.1).collect()));
+                splits.entry(f).or_default().push((k, on.iter().map(|x| x.1).collect()));
             }
         }
         if splits.is_empty() {
