@@ -97,6 +97,15 @@ fn principal_offsets_are_the_known_cell_pitch() {
                 best.offset_model,
                 100.0 * err
             );
+            // The generated models repeat exactly, vertex for vertex: the offset is snapped to the
+            // exact translation (ICP alone leaves 10⁻⁵–10⁻³).
+            let snap = best.vertex_snap.unwrap_or_else(|| panic!("{name}: pitch {p:?} was not snapped"));
+            assert!(snap.pairs >= 8, "{name}: {snap:?}");
+            assert!(
+                err <= 1e-9,
+                "{name}: snapped offset {:?} is {err:.1e} off the pitch {p:?}",
+                best.offset_model
+            );
         }
         assert_eq!(a.repetition.kind, Repetition::Repetitive, "{name}: {}", a.repetition.summary);
         // At most three principal offsets, pairwise at least θ = π/3 apart.

@@ -806,6 +806,9 @@ fn detected_offsets_retarget_the_shelf_and_reuse_the_features() {
         let expected: usize = (0..known.len()).map(|i| r.input_voxels[i] + 1).product();
         assert_eq!(detected.len(), known.len(), "{name}");
         assert_eq!((cells.cells, cells.broken), (expected, 0), "{name}");
+        // The inputs are closed; with detected offsets (snapped to the exact vertex translation)
+        // every seam welds shut. The sheared shelf had 60–130 open edges before the snap.
+        assert_eq!(r.output_boundary_edges, 0, "{name}: open edges along seams");
         assert_eq!(r.stages.sampling_ms, 0.0, "features are reused");
     }
 }

@@ -44,6 +44,14 @@ pub fn offsets(a: OffsetsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 100.0 * p.support_share,
                 100.0 * p.overlap
             );
+            if let Some(snap) = &p.vertex_snap {
+                println!(
+                    "    snapped to the exact vertex translation ({} of {} vertex pairs agree; ICP was {:.2e} model units off)",
+                    snap.pairs,
+                    snap.probed,
+                    snap.shift / an.normalisation.scale
+                );
+            }
         }
         println!(
             "  {} dominant offsets (histogram peaks); analysis {:.0} ms",

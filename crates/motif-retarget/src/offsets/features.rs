@@ -104,6 +104,9 @@ pub struct OffsetFeatures {
     pub dense_normals: Vec<Point3>,
     /// Number of leading dense points that are thinned mesh vertices.
     pub num_vertex_points: usize,
+    /// Every mesh vertex used by a triangle (normalised): the partners of the vertex snap of the
+    /// principal offsets (see [`super::refine::snap_to_vertices`]).
+    pub mesh_vertices: Vec<Point3>,
     /// The features as indices into `dense` (`#F`): vertices first, then samples.
     pub features: Vec<usize>,
     /// Where each feature comes from (`#F`).
@@ -200,6 +203,7 @@ pub fn prepare_features(
     }
     let vertex_normals = norm_mesh.vertex_normals();
     let used_idx: Vec<usize> = (0..used.len()).filter(|&i| used[i]).collect();
+    let mesh_vertices: Vec<Point3> = used_idx.iter().map(|&i| norm_mesh.positions[i]).collect();
     let vertex_idx: Vec<usize> = match options.vertex_features {
         VertexFeatures::None => Vec::new(),
         VertexFeatures::All => used_idx,
@@ -280,6 +284,7 @@ pub fn prepare_features(
         dense,
         dense_normals,
         num_vertex_points: nv,
+        mesh_vertices,
         features,
         kinds,
         descriptors: shots.descriptors,

@@ -45,7 +45,7 @@ pub use error::{OffsetsError, Result};
 pub use features::{FeatureKind, FeatureTimings, Normalisation, OffsetFeatures, prepare_features};
 pub use histogram::{HistogramBin, HistogramPeak, OffsetHistogram, SignConvention};
 pub use matching::{FeatureMatch, match_features};
-pub use refine::{IcpSummary, PeriodCandidate};
+pub use refine::{IcpSummary, PeriodCandidate, VertexSnap};
 
 use refine::Prober;
 
@@ -204,6 +204,9 @@ pub struct OffsetOptions {
     /// is at least this: shifting by it must map clearly more of the salient surface onto itself
     /// than shifting by half or one and a half of it (not in the thesis); default 0.1.
     pub min_contrast: f64,
+    /// Snap each principal offset to the exact vertex-to-vertex translation of the mesh near it,
+    /// when there is one (see [`refine::snap_to_vertices`]; not in the thesis); default true.
+    pub snap_to_vertices: bool,
     /// Seed of every random choice (sampling); default 0.
     pub seed: u64,
 }
@@ -235,6 +238,7 @@ impl Default for OffsetOptions {
                 min_length: 0.03,
             },
             min_contrast: 0.1,
+            snap_to_vertices: true,
             seed: 0,
         }
     }
@@ -371,6 +375,9 @@ pub struct PrincipalOffset {
     pub contrast: f64,
     /// The candidates scored by the period reduction (empty when it is off).
     pub period_candidates: Vec<PeriodCandidate>,
+    /// The snap of the refined offset to an exact vertex-to-vertex translation, when the mesh
+    /// has one (`offset` is then the snapped offset).
+    pub vertex_snap: Option<VertexSnap>,
 }
 
 /// Whether the model has translational repetition.
@@ -697,6 +704,14 @@ pub fn analyze_features(
                 };
                 offset = histogram::canonical_vector(offset, 1e-12);
             }
+            let vertex_snap = if options.snap_to_vertices {
+                refine::snap_to_vertices(features, offset, 0.5 * features.dense_spacing)
+            } else {
+                None
+            };
+            if let Some(snap) = vertex_snap {
+                offset = histogram::canonical_vector(snap.offset, 1e-12);
+            }
             let (overlap, contrast) = prober.contrast(offset);
             let length = norm(offset);
             PrincipalOffset {
@@ -713,6 +728,7 @@ pub fn analyze_features(
                 overlap,
                 contrast,
                 period_candidates: candidates,
+                vertex_snap,
             }
         })
         .collect();

@@ -299,6 +299,93 @@ impl<'a> Prober<'a> {
     }
 }
 
+/// Side of the difference cells in which [`snap_to_vertices`] looks for the most frequent exact
+/// vertex-to-vertex translation, normalised units (10⁻⁵ of the model's half-size: well above the
+/// rounding of 7-digit ASCII STL coordinates, far below any modelled feature).
+pub const SNAP_CELL: f64 = 1e-5;
+/// Least number of vertex pairs that must agree on the snapped translation.
+pub const SNAP_MIN_PAIRS: usize = 8;
+/// Least share of the probed vertices (those with a partner near `v + t`) that must agree.
+pub const SNAP_MIN_SHARE: f64 = 0.1;
+
+/// An offset snapped to an exact vertex-to-vertex translation.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct VertexSnap {
+    /// The snapped offset, normalised units: the mean of the agreeing vertex differences.
+    pub offset: Point3,
+    /// Vertex pairs that agree on it (within [`SNAP_CELL`]).
+    pub pairs: usize,
+    /// Vertices probed that found a partner within the search radius.
+    pub probed: usize,
+    /// Distance from the refined offset to the snapped one, normalised units.
+    pub shift: f64,
+}
+
+/// Snaps `t` (a refined offset, normalised units) to the translation that maps mesh vertices
+/// exactly onto mesh vertices, when the mesh has one near `t` (a Motif extension, not in the
+/// thesis).
+///
+/// ICP on sampled points leaves a refined offset off by 10⁻⁵–10⁻³ of its length (the samples are
+/// random, and parts that differ from copy to copy, like a fence's posts of varying height, pull
+/// the fit). Each copy placed k cells away carries k times that error, and on a CAD model it
+/// opens the seams: vertices that should weld miss each other. A CAD model's copies are exact, so
+/// the differences `w − v` between each thinned mesh vertex `v` and its nearest mesh vertex `w`
+/// to `v + t` (within `radius`) pile up on the exact translation. The most populated cell of side
+/// [`SNAP_CELL`] (with its neighbours) is taken when it holds at least [`SNAP_MIN_PAIRS`] pairs and
+/// [`SNAP_MIN_SHARE`] of the probed vertices; scans and remeshed models have no such pile, and
+/// their ICP offset stays.
+pub fn snap_to_vertices(features: &OffsetFeatures, t: Point3, radius: f64) -> Option<VertexSnap> {
+    use std::collections::HashMap;
+    let targets = &features.mesh_vertices;
+    if targets.is_empty() || features.num_vertex_points == 0 {
+        return None;
+    }
+    let tree = KdTree::new(targets).ok()?;
+    let diffs: Vec<Point3> = features.dense[..features.num_vertex_points]
+        .par_iter()
+        .filter_map(|&v| {
+            let q = [v[0] + t[0], v[1] + t[1], v[2] + t[2]];
+            let nb = tree.nearest(q);
+            (nb.distance <= radius).then(|| sub(targets[nb.index], v))
+        })
+        .collect();
+    let key = |d: Point3| d.map(|c| (c / SNAP_CELL).floor() as i64);
+    let mut counts: HashMap<[i64; 3], usize> = HashMap::new();
+    for &d in &diffs {
+        *counts.entry(key(d)).or_default() += 1;
+    }
+    // The cell whose 3×3×3 block holds the most differences (smallest key on ties).
+    let block = |k: [i64; 3]| {
+        let mut n = 0;
+        for dz in -1..=1 {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    n += counts.get(&[k[0] + dx, k[1] + dy, k[2] + dz]).copied().unwrap_or(0);
+                }
+            }
+        }
+        n
+    };
+    let (best, pairs) =
+        counts.keys().map(|&k| (k, block(k))).max_by(|a, b| a.1.cmp(&b.1).then(b.0.cmp(&a.0)))?;
+    if pairs < SNAP_MIN_PAIRS || (pairs as f64) < SNAP_MIN_SHARE * diffs.len() as f64 {
+        return None;
+    }
+    let mut sum = [0.0; 3];
+    let mut n = 0usize;
+    for &d in &diffs {
+        let k = key(d);
+        if (0..3).all(|i| (k[i] - best[i]).abs() <= 1) {
+            for i in 0..3 {
+                sum[i] += d[i];
+            }
+            n += 1;
+        }
+    }
+    let offset = sum.map(|c| c / n as f64);
+    Some(VertexSnap { offset, pairs: n, probed: diffs.len(), shift: norm(sub(offset, t)) })
+}
+
 /// Points per partial sum of an ICP iteration.
 const ACCUM_CHUNK: usize = 512;
 

@@ -172,10 +172,15 @@ pub struct RetargetOptions {
     pub boundary: BoundaryMode,
     /// How triangles are assigned to voxels (thesis 4.2.2 copies "the source geometry" of a
     /// voxel without saying how triangles crossing voxel faces are split); default
-    /// [`TriangleAssignment::Centroid`].
+    /// [`TriangleAssignment::Cut`].
     pub assignment: TriangleAssignment,
     /// Seam welding tolerance, relative to the smallest cell edge (the shortest principal offset,
-    /// or the dense spacing); default 10⁻⁶. 0 disables seam welding.
+    /// or the dense spacing); default 10⁻³. Offsets snapped to a mesh's exact vertex translation
+    /// ([`crate::offsets::refine::snap_to_vertices`]) are exact to rounding, but offsets given by
+    /// hand or refined by ICP alone are off by 10⁻⁵–10⁻³ of a cell, and a copy k cells away
+    /// carries k times that: at the former default of 10⁻⁶ the sheared shelf grown by +1,+1 kept
+    /// 60–130 open edges along its seams. A thousandth of a cell is still far below any detail a
+    /// model resized along that cell has. 0 disables seam welding.
     pub weld_tolerance: f64,
     /// Largest retargeting space Ω accepted, in voxels (graph nodes); default 10⁶. The thesis's
     /// interactive graphs have < 1,000 nodes (4.4), its dense baselines < 10⁴ (Fig. 4.8).
@@ -202,7 +207,7 @@ impl Default for RetargetOptions {
             seed: 0,
             boundary: BoundaryMode::Preserve,
             assignment: TriangleAssignment::Cut,
-            weld_tolerance: 1e-6,
+            weld_tolerance: 1e-3,
             max_voxels: 1_000_000,
             max_labels: 10_000,
             force: false,
