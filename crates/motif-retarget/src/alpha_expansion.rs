@@ -422,13 +422,29 @@ pub struct AlphaExpansion<C: Capacity> {
     incidence: Incidence,
     /// One move's graph and scratch buffers per concurrently solved move.
     workers: Vec<MoveWorker<C>>,
+    /// D(p, l) label-major (`l · N + p`), when N · L ≤ [`UNARY_CACHE_MAX`]: a move reads one
+    /// label's column in site order instead of striding through the callback's table.
+    unary_by_label: Vec<C>,
+    /// D(p, x_p) of the current labelling, clamped (+∞ → `infinite_cost`).
+    keep_cost: Vec<C>,
 }
+
+/// Largest N · L for which the unary costs are cached label-major (64 MB of `i64`).
+const UNARY_CACHE_MAX: usize = 1 << 23;
 
 /// Site → incident edges.
 #[derive(Debug, Clone, Default)]
 struct Incidence {
     start: Vec<u32>,
     list: Vec<u32>,
+}
+
+/// Unary costs as the moves read them.
+struct UnaryCosts<'a, C> {
+    /// D(p, l) at `l · N + p`, when cached.
+    by_label: Option<&'a [C]>,
+    /// D(p, x_p) of the current labelling, clamped.
+    keep: &'a [C],
 }
 
 /// The graph and buffers of one expansion move.
@@ -631,7 +647,12 @@ impl Schedule {
 impl<C: Capacity> AlphaExpansion<C> {
     /// An empty solver; buffers grow on the first solve.
     pub fn new() -> Self {
-        AlphaExpansion { incidence: Incidence::default(), workers: Vec::new() }
+        AlphaExpansion {
+            incidence: Incidence::default(),
+            workers: Vec::new(),
+            unary_by_label: Vec::new(),
+            keep_cost: Vec::new(),
+        }
     }
 
     /// Runs alpha-expansion from `init` (`#sites` labels, each < L).
@@ -668,6 +689,18 @@ impl<C: Capacity> AlphaExpansion<C> {
         }
         let mut labels = init.to_vec();
         let mut current = energy.energy_clamped(&labels, hard)?;
+        let n = energy.num_sites;
+        self.keep_cost.clear();
+        for (p, &l) in labels.iter().enumerate() {
+            self.keep_cost.push(energy.unary_clamped(p, l as usize, hard)?);
+        }
+        self.unary_by_label.clear();
+        if n.saturating_mul(num_labels) <= UNARY_CACHE_MAX {
+            self.unary_by_label.reserve(n * num_labels);
+            for l in 0..num_labels {
+                self.unary_by_label.extend((0..n).map(|p| (energy.unary)(p, l)));
+            }
+        }
 
         let mut schedule = Schedule::new(options, num_labels);
         // `known_optimal[α] == Some(k)`: the α-move was optimal (failed, or just succeeded
@@ -716,6 +749,8 @@ impl<C: Capacity> AlphaExpansion<C> {
             if let (Some(w), Some(step)) = (accepted_by, steps.last()) {
                 for &p in &self.workers[w].switched {
                     labels[p as usize] = step.alpha;
+                    self.keep_cost[p as usize] =
+                        energy.unary_clamped(p as usize, step.alpha as usize, hard)?;
                 }
             }
             if pass_ended || upcoming.is_empty() {
@@ -763,6 +798,10 @@ impl<C: Capacity> AlphaExpansion<C> {
     {
         steps.clear();
         let incidence = &self.incidence;
+        let costs = UnaryCosts {
+            by_label: (!self.unary_by_label.is_empty()).then_some(&self.unary_by_label[..]),
+            keep: &self.keep_cost,
+        };
         let mut i = 0;
         let mut batch: Vec<(usize, u32)> = Vec::with_capacity(threads);
         while i < upcoming.len() {
@@ -780,7 +819,8 @@ impl<C: Capacity> AlphaExpansion<C> {
                 batch
                     .iter()
                     .map(|&(_, alpha)| {
-                        self.workers[0].expand(energy, incidence, labels, alpha, current, hard, ties, true)
+                        self.workers[0]
+                            .expand(energy, incidence, &costs, labels, alpha, current, hard, ties, true)
                     })
                     .collect()
             } else {
@@ -788,7 +828,7 @@ impl<C: Capacity> AlphaExpansion<C> {
                     .par_iter_mut()
                     .zip(batch.par_iter())
                     .map(|(w, &(_, alpha))| {
-                        w.expand(energy, incidence, labels, alpha, current, hard, ties, false)
+                        w.expand(energy, incidence, &costs, labels, alpha, current, hard, ties, false)
                     })
                     .collect()
             };
@@ -864,6 +904,7 @@ impl<C: Capacity> MoveWorker<C> {
         &mut self,
         energy: &MrfEnergy<'_, C, D, V>,
         incidence: &Incidence,
+        costs: &UnaryCosts<'_, C>,
         labels: &[u32],
         alpha: u32,
         current: C,
@@ -881,11 +922,15 @@ impl<C: Capacity> MoveWorker<C> {
         self.var_of.resize(n, FIXED);
         self.site_of.clear();
         self.tdelta.clear();
+        let column = costs.by_label.map(|c| &c[a * n..(a + 1) * n]);
         for (p, &l) in labels.iter().enumerate() {
             if l == alpha {
                 continue;
             }
-            let switch = (energy.unary)(p, a);
+            let switch = match column {
+                Some(c) => c[p],
+                None => (energy.unary)(p, a),
+            };
             if switch.is_infinite() && switch > C::ZERO {
                 continue; // α is forbidden at p
             }
@@ -896,7 +941,7 @@ impl<C: Capacity> MoveWorker<C> {
                     location: format!("site {p}, label {a}"),
                 });
             }
-            let keep = energy.unary_clamped(p, l as usize, hard)?;
+            let keep = costs.keep[p];
             self.var_of[p] = self.site_of.len() as u32;
             self.site_of.push(p as u32);
             self.tdelta.push(switch - keep);
