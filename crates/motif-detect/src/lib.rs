@@ -18,6 +18,7 @@
 
 #![warn(missing_docs)]
 
+pub mod class_merge;
 pub mod cooccurrence;
 pub mod detection;
 pub mod dictionary;
