@@ -208,7 +208,7 @@ pub fn merge_classes(
         c.words.dedup();
         out.push(c);
     }
-    out.sort_by(|a, b| b.instances.len().cmp(&a.instances.len()));
+    out.sort_by_key(|c| std::cmp::Reverse(c.instances.len()));
     (out, joins)
 }
 
