@@ -734,9 +734,13 @@ pub struct DetectArgs {
     /// Mean-shift bandwidth in the MDS embedding (thesis 5.4: 0.5).
     #[arg(long, default_value_t = 0.5)]
     pub bandwidth: f64,
-    /// Rounds of MDL incremental detection: at most this many classes (thesis 5.4).
-    #[arg(long, default_value_t = 5)]
+    /// Rounds of MDL incremental detection (thesis 5.4); each keeps the classes of one cluster.
+    #[arg(long, default_value_t = 7)]
     pub classes: usize,
+    /// MDL stopping rule: a round's classes are kept only when they save at least this fraction
+    /// of all features (see motif_detect::DetectOptions::mdl_min_saving).
+    #[arg(long, default_value_t = 0.005)]
+    pub mdl_min_saving: f64,
     /// Points sampled on a mesh input.
     #[arg(long, default_value_t = 300_000)]
     pub mesh_samples: usize,

@@ -30,6 +30,7 @@ use serde::{Deserialize, Serialize};
 
 use rayon::prelude::*;
 
+use crate::class_merge::ClassMerge;
 use crate::cooccurrence::PairMatch;
 use crate::dictionary::Word;
 use crate::grid::SpatialHash;
@@ -71,11 +72,16 @@ pub struct InstanceOptions {
     /// Not in the thesis. Default 2.
     pub split_ratio: f64,
     /// [`ClassSplit::Surface`]: ... and at least this average fraction of unmatched surface
-    /// points, so that near-identical copies (distances ≈ 0) are never split. Default 0.1.
+    /// points, so that near-identical copies (distances ≈ 0) are never split; classes closer than
+    /// this are joined after the MDL rounds ([`ClassMerge::Surface`]). Default 0.1.
     pub split_min_distance: f64,
     /// [`ClassSplit::Surface`]: a surface point is matched when the other instance has a point
     /// within this distance, in ε. Default 2.
     pub surface_tolerance: f64,
+    /// Whether classes of different MDL rounds (or split from one cluster) whose instances'
+    /// surfaces agree are joined after the last round ([`crate::class_merge`]). Not in the
+    /// thesis. Default [`ClassMerge::Surface`].
+    pub merge: ClassMerge,
 }
 
 /// How instance boxes are estimated (5.3.3: "the bounding boxes of all instances from the same
@@ -130,6 +136,7 @@ impl Default for InstanceOptions {
             split_ratio: 2.0,
             split_min_distance: 0.1,
             surface_tolerance: 2.0,
+            merge: ClassMerge::Surface,
         }
     }
 }
@@ -581,7 +588,7 @@ fn correspondences(a: &RawInstance, b: &RawInstance, features: &[Feature]) -> (V
 
 /// The rigid motion that best maps `from` onto `to` in the least-squares sense (Kabsch), or
 /// `None` with fewer than three pairs.
-fn kabsch(from: &[Point3], to: &[Point3]) -> Option<nalgebra::Isometry3<f64>> {
+pub(crate) fn kabsch(from: &[Point3], to: &[Point3]) -> Option<nalgebra::Isometry3<f64>> {
     if from.len() < 3 {
         return None;
     }

@@ -9,6 +9,8 @@
 //! Available now:
 //! - [`detection`]: the detection / ground-truth JSON schema (`../shared/formats/detection.md`),
 //!   read, written and validated;
+//! - [`class_merge`]: classes of one block found in different MDL rounds joined again (not in
+//!   the thesis);
 //! - [`eval`]: the evaluation protocol of thesis 5.5.2 (box matching, precision, recall, F, the
 //!   PR curve by class removal and the stress curve over the overlap threshold τ);
 //! - [`plot`]: the PR and stress curves as a PNG (like the thesis's Fig. 5.9);
@@ -18,6 +20,7 @@
 
 #![warn(missing_docs)]
 
+pub mod class_merge;
 pub mod cooccurrence;
 pub mod detection;
 pub mod dictionary;

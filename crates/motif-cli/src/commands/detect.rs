@@ -29,6 +29,7 @@ pub fn options(a: &DetectArgs, g: &GlobalArgs) -> DetectOptions {
     let mut o = DetectOptions {
         seed: g.seed,
         mdl_rounds: a.classes,
+        mdl_min_saving: a.mdl_min_saving,
         mesh_samples: a.mesh_samples,
         ..Default::default()
     };
