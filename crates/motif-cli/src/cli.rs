@@ -395,10 +395,10 @@ pub enum CyclesArg {
 
 #[derive(Debug, Clone, Copy, ValueEnum, Default, PartialEq)]
 pub enum TiesArg {
-    /// Among equally good cuts, switch the most sites to the move's label.
+    /// Among equally good cuts, switch the most sites to the move's label (GCO's choice).
     #[default]
     MostAlpha,
-    /// Among equally good cuts, switch the fewest sites (GCO's choice).
+    /// Among equally good cuts, switch the fewest sites.
     FewestAlpha,
 }
 

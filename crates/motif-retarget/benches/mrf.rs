@@ -2,7 +2,7 @@
 //! Run: `cargo bench -p motif-retarget --bench mrf -- --warm-up-time 1 --measurement-time 5`.
 //!
 //! - `grid/*`: `mrf_grid_v1` problems solved from the argmin start: the shipped 10³ example and
-//!   generated ones (`generate_grid`, seed 1), with full and with adaptive cycles. Peers' GCO times on this machine's kind, same
+//!   generated ones (`generate_grid`, seed 1), with full, adaptive and queue (the default) cycles. Peers' GCO times on this machine's kind, same
 //!   generator: 11.7 ms (10³, 8 labels, 6-conn.), 61 ms (26-conn.), 469 ms (20³, 30 labels,
 //!   6-conn.), 4.7 s (26-conn.). 30³ × 64 labels is timed by `examples/mrf_timing.rs`.
 //! - `retarget_callback/*`: the thesis's interactive size, ~1000 voxels × 30 offset labels on a
@@ -43,11 +43,12 @@ fn grid(c: &mut Criterion) {
         let name = format!("gen_{0}x{0}x{0}_L{1}_c{2}", dims[0], labels, conn.number());
         cases.push((name, generate_grid(dims, labels, conn, 1), samples));
     }
-    let full = AlphaExpansionOptions::default();
+    let full = AlphaExpansionOptions { cycles: CycleStrategy::Full, ..Default::default() };
     let adaptive = AlphaExpansionOptions { cycles: CycleStrategy::Adaptive, ..Default::default() };
+    let queue = AlphaExpansionOptions { cycles: CycleStrategy::Queue, ..Default::default() };
     let mut g = c.benchmark_group("grid");
     for (name, problem, samples) in &cases {
-        for (strategy, options) in [("full", &full), ("adaptive", &adaptive)] {
+        for (strategy, options) in [("full", &full), ("adaptive", &adaptive), ("queue", &queue)] {
             let name = format!("{name}_{strategy}");
             g.sample_size(*samples);
             let printed = std::cell::Cell::new(false);

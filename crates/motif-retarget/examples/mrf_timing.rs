@@ -6,7 +6,7 @@
 //! - `--repeat N` (default 3): solves per problem, the median is reported;
 //! - `--write DIR`: also writes every generated problem as `mrf_grid_v1` JSON into DIR;
 //! - `--only TEXT`: only the problems whose name contains TEXT (e.g. `20³ L30 c6`);
-//! - `--cycles full|adaptive` (default `full`): the alpha-expansion cycle strategy.
+//! - `--cycles full|adaptive|queue` (default `queue`): the alpha-expansion cycle strategy.
 
 use std::path::PathBuf;
 
@@ -63,9 +63,11 @@ fn main() {
                 i += 1;
             }
             "--cycles" => {
-                if args.get(i + 1).map(String::as_str) == Some("adaptive") {
-                    options.cycles = CycleStrategy::Adaptive;
-                }
+                options.cycles = match args.get(i + 1).map(String::as_str) {
+                    Some("adaptive") => CycleStrategy::Adaptive,
+                    Some("full") => CycleStrategy::Full,
+                    _ => CycleStrategy::Queue,
+                };
                 i += 1;
             }
             "--bench" => {}

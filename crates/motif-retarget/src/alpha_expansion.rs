@@ -52,8 +52,9 @@ pub enum LabelOrder {
     /// 0, 1, …, L−1 in every cycle (GCO's default).
     #[default]
     Sequential,
-    /// A fresh random permutation in every cycle, from a ChaCha8 generator seeded with `seed`
-    /// (reproducible).
+    /// A random permutation from a ChaCha8 generator seeded with `seed` (reproducible): a fresh
+    /// one in every cycle with [`CycleStrategy::Full`] and [`CycleStrategy::Adaptive`], one per
+    /// solve with [`CycleStrategy::Queue`] (as GCO permutes its label table once).
     Random {
         /// Seed of the permutation generator.
         seed: u64,
@@ -77,8 +78,9 @@ pub enum CycleStrategy {
     /// on the successful ones in a smaller queue, and when a pass of a queue succeeds nowhere the
     /// labels set aside in the enclosing queue are tried again. The solve ends when the outermost
     /// queue has a pass without success, so the result is a local minimum of every expansion
-    /// move. Together with [`TieBreak::FewestAlpha`] and [`LabelOrder::Sequential`] it takes
-    /// exactly GCO's sequence of moves. The default: on the `mrf_grid_v1` benchmark problems it
+    /// move. Together with [`TieBreak::MostAlpha`] and [`LabelOrder::Sequential`] it takes
+    /// GCO's sequence of accepted moves (Motif skips moves known to fail that GCO still solves,
+    /// so the counts of solved moves differ). The default: on the `mrf_grid_v1` benchmark problems it
     /// reaches GCO's energies, and on the retargeting MRFs of 4.4 it needs about half the moves
     /// of [`CycleStrategy::Full`] (most labels are never used there, and their moves are not
     /// retried until the used ones settle).
@@ -89,11 +91,12 @@ pub enum CycleStrategy {
 /// Which of several equally good cuts an expansion move applies.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub enum TieBreak {
-    /// Switch every site that some minimum cut switches (the largest α region).
+    /// Switch every site that some minimum cut switches (the largest α region; GCO's choice:
+    /// its `applyNewLabeling` switches the variables that read 0, and its max-flow reports free
+    /// nodes as source-side, i.e. 0).
     #[default]
     MostAlpha,
-    /// Switch only the sites that every minimum cut switches (GCO's choice: sites its max-flow
-    /// leaves free keep their labels).
+    /// Switch only the sites that every minimum cut switches.
     FewestAlpha,
 }
 
@@ -101,10 +104,12 @@ pub enum TieBreak {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct AlphaExpansionOptions {
-    /// Maximum number of cycles (passes over the labels of the current schedule) of the graph-cut
-    /// optimisation of thesis eq. 4.3 (section 4.2.2). Default 100: alpha-expansion typically
-    /// converges in 2–8 cycles, so the limit only bounds pathological runs (GCO's `expansion()`
-    /// runs until convergence). 0 returns the initial labelling.
+    /// Maximum number of cycles of the graph-cut optimisation of thesis eq. 4.3 (section 4.2.2):
+    /// passes over every label with [`CycleStrategy::Full`] and [`CycleStrategy::Adaptive`],
+    /// passes of the outermost queue with [`CycleStrategy::Queue`] (the focused passes on smaller
+    /// queues in between do not count). Default 100: alpha-expansion typically converges in 2–8
+    /// such cycles, so the limit only bounds pathological runs (GCO's `expansion()` runs until
+    /// convergence). 0 returns the initial labelling.
     pub max_cycles: usize,
     /// Order of the labels within a cycle. Default [`LabelOrder::Sequential`].
     pub label_order: LabelOrder,
@@ -136,8 +141,9 @@ impl Default for AlphaExpansionOptions {
 /// Why the expansion loop stopped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Termination {
-    /// A whole cycle lowered the energy no further: the labelling is a local minimum with respect
-    /// to every expansion move.
+    /// No move can lower the energy any more (a whole cycle, or with [`CycleStrategy::Queue`] a
+    /// pass of the outermost queue after every focused queue, found nothing): the labelling is a
+    /// local minimum with respect to every expansion move.
     Converged,
     /// [`AlphaExpansionOptions::max_cycles`] cycles were run.
     MaxCycles,
@@ -152,10 +158,10 @@ pub struct AlphaExpansionResult<C> {
     pub energy: C,
     /// Energy of the initial labelling, from the callbacks.
     pub initial_energy: C,
-    /// Number of cycles run, full or adaptive (the last one, when converged, is a full cycle that
-    /// confirms that no move helps).
+    /// Number of passes run, of every kind (full, adaptive, or queue passes of any size; when
+    /// converged, the last ones confirm that no move helps).
     pub cycles: usize,
-    /// Energy after each cycle (with +∞ costs replaced by the `infinite_cost` option).
+    /// Energy after each pass (with +∞ costs replaced by the `infinite_cost` option).
     pub cycle_energies: Vec<C>,
     /// Number of expansion moves solved by a graph cut (moves known to fail are skipped).
     pub moves: usize,
@@ -487,6 +493,9 @@ struct Schedule {
     rng: Option<rand_chacha::ChaCha8Rng>,
     /// Passes started (cycles).
     passes: usize,
+    /// Passes that count against `max_cycles`: every pass, or for Queue those of the outermost
+    /// queue.
+    counted: usize,
     in_pass: bool,
     // Full / Adaptive sweeps.
     pos: usize,
@@ -520,6 +529,7 @@ impl Schedule {
             order,
             rng,
             passes: 0,
+            counted: 0,
             in_pass: false,
             pos: 0,
             improved: false,
@@ -538,7 +548,8 @@ impl Schedule {
         if self.in_pass {
             return true;
         }
-        if self.passes >= max_passes {
+        let counts = self.strategy != CycleStrategy::Queue || self.stack.len() == 1;
+        if counts && self.counted >= max_passes {
             return false;
         }
         match self.strategy {
@@ -557,6 +568,7 @@ impl Schedule {
             }
         }
         self.passes += 1;
+        self.counted += usize::from(counts);
         self.in_pass = true;
         true
     }
@@ -712,6 +724,9 @@ impl<C: Capacity> AlphaExpansion<C> {
         let mut termination = Termination::MaxCycles;
         let mut upcoming = Vec::new();
         let mut steps = Vec::new();
+        // Right after a successful move the next one often succeeds too: speculate only once a
+        // move has failed (the first move after a success runs alone, with parallel terms).
+        let mut after_success = true;
         while schedule.begin_pass(options.max_cycles) {
             schedule.upcoming(&mut upcoming);
             let skip =
@@ -724,9 +739,11 @@ impl<C: Capacity> AlphaExpansion<C> {
                 current,
                 hard,
                 options.ties,
+                if after_success { 1 } else { threads },
                 threads,
                 &mut steps,
             )?;
+            after_success = accepted_by.is_some();
             let mut pass_ended = false;
             for step in &steps {
                 if step.solved {
@@ -776,7 +793,8 @@ impl<C: Capacity> AlphaExpansion<C> {
         })
     }
 
-    /// Runs the moves of `upcoming` in order, `threads` at a time, until one lowers the energy.
+    /// Runs the moves of `upcoming` in order until one lowers the energy: `first_width` at first,
+    /// then `threads` at a time.
     /// Fills `steps` with the moves up to and including that one (all of them when none does)
     /// and returns the worker that holds the accepted move's switched sites.
     #[allow(clippy::too_many_arguments)]
@@ -789,6 +807,7 @@ impl<C: Capacity> AlphaExpansion<C> {
         current: C,
         hard: C,
         ties: TieBreak,
+        first_width: usize,
         threads: usize,
         steps: &mut Vec<Step<C>>,
     ) -> Result<Option<usize>>
@@ -803,12 +822,13 @@ impl<C: Capacity> AlphaExpansion<C> {
             keep: &self.keep_cost,
         };
         let mut i = 0;
+        let mut width = first_width.clamp(1, threads);
         let mut batch: Vec<(usize, u32)> = Vec::with_capacity(threads);
         while i < upcoming.len() {
             // The next `threads` moves that are not skipped.
             batch.clear();
             let mut j = i;
-            while j < upcoming.len() && batch.len() < threads {
+            while j < upcoming.len() && batch.len() < width {
                 let (alpha, by_rule) = upcoming[j];
                 if !skip(alpha, by_rule) {
                     batch.push((j, alpha));
@@ -853,6 +873,7 @@ impl<C: Capacity> AlphaExpansion<C> {
                 }
             }
             i = j;
+            width = threads;
         }
         Ok(None)
     }

@@ -135,9 +135,10 @@ pub struct GridSolution {
     pub initial_energy: i64,
     /// Final labels in site order.
     pub labels_flat: Vec<u32>,
-    /// Expansion cycles run (the last one, when converged, confirms that no move helps).
+    /// Expansion passes run (see [`crate::AlphaExpansionResult::cycles`]; when converged, the
+    /// last ones confirm that no move helps).
     pub cycles: usize,
-    /// Energy after each cycle.
+    /// Energy after each pass.
     pub cycle_energies: Vec<i64>,
     /// Expansion moves solved by a graph cut.
     pub moves: usize,

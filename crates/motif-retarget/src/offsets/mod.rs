@@ -19,7 +19,9 @@
 //!    duplicate a stronger one.
 //! 6. **Select** up to three principal offsets greedily by support, each at least θ = π/3 from
 //!    those chosen (4.4), and reduce each to its fundamental period ([`PeriodReduction`], a Motif
-//!    extension: a principal offset must be the pitch, not a multiple of it).
+//!    extension: a principal offset must be the pitch, not a multiple of it), then snap it to the
+//!    mesh's exact vertex-to-vertex translation when there is one
+//!    ([`refine::snap_to_vertices`], a Motif extension: seams of CAD models then weld exactly).
 //! 7. **Judge** whether the model repeats at all ([`RepetitionVerdict`]): some principal offset
 //!    must be a discrete period by overlap contrast.
 //!
@@ -92,6 +94,11 @@ pub enum Refinement {
 /// How much lower the overlap of a lattice generator may be than that of the multiple it replaces
 /// (see [`PeriodReduction::Fundamental`]).
 const LATTICE_OVERLAP_SLACK: f64 = 0.02;
+
+/// A principal offset snapped to a vertex translation (see [`refine::snap_to_vertices`]) must
+/// overlap the surface at least this close to the refined offset's overlap: an exact period
+/// overlaps as much or more, a tessellation step beside it less.
+const SNAP_OVERLAP_SLACK: f64 = 0.01;
 
 /// Reduction of a principal offset to its fundamental period (a Motif extension; the thesis keeps
 /// the selected dominant offsets as they are). A principal offset should be a generator of the
@@ -614,6 +621,11 @@ pub fn analyze_features(
             chosen.push(i);
         }
     }
+    let vertex_tree = if options.snap_to_vertices && !features.mesh_vertices.is_empty() {
+        motif_core::spatial::KdTree::new(&features.mesh_vertices).ok()
+    } else {
+        None
+    };
     let principal: Vec<PrincipalOffset> = chosen
         .iter()
         .map(|&i| {
@@ -704,13 +716,16 @@ pub fn analyze_features(
                 };
                 offset = histogram::canonical_vector(offset, 1e-12);
             }
-            let vertex_snap = if options.snap_to_vertices {
-                refine::snap_to_vertices(features, offset, 0.5 * features.dense_spacing)
-            } else {
-                None
-            };
-            if let Some(snap) = vertex_snap {
+            let mut vertex_snap = vertex_tree
+                .as_ref()
+                .and_then(|tree| {
+                    refine::snap_to_vertices(features, tree, offset, 0.5 * features.dense_spacing)
+                })
+                // The snapped translation must map the surface onto itself at least as well.
+                .filter(|snap| prober.overlap(snap.offset) >= prober.overlap(offset) - SNAP_OVERLAP_SLACK);
+            if let Some(snap) = vertex_snap.as_mut() {
                 offset = histogram::canonical_vector(snap.offset, 1e-12);
+                snap.offset = offset;
             }
             let (overlap, contrast) = prober.contrast(offset);
             let length = norm(offset);

@@ -332,21 +332,32 @@ pub struct VertexSnap {
 /// the differences `w − v` between each thinned mesh vertex `v` and its nearest mesh vertex `w`
 /// to `v + t` (within `radius`) pile up on the exact translation. The most populated cell of side
 /// [`SNAP_CELL`] (with its neighbours) is taken when it holds at least [`SNAP_MIN_PAIRS`] pairs and
-/// [`SNAP_MIN_SHARE`] of the probed vertices; scans and remeshed models have no such pile, and
-/// their ICP offset stays.
-pub fn snap_to_vertices(features: &OffsetFeatures, t: Point3, radius: f64) -> Option<VertexSnap> {
+/// [`SNAP_MIN_SHARE`] of the probed vertices. Scanned surfaces have no such pile and keep their ICP
+/// offset. A mesh tessellated on a regular grid of its own (a subdivided plane) can pile up on a
+/// grid step near `t` instead, so the caller also checks that the snapped offset maps the surface
+/// onto itself at least as well as `t` (see `analyze_features`). `tree` holds
+/// `features.mesh_vertices`.
+pub fn snap_to_vertices(
+    features: &OffsetFeatures,
+    tree: &KdTree,
+    t: Point3,
+    radius: f64,
+) -> Option<VertexSnap> {
     use std::collections::HashMap;
     let targets = &features.mesh_vertices;
     if targets.is_empty() || features.num_vertex_points == 0 {
         return None;
     }
-    let tree = KdTree::new(targets).ok()?;
+    // Bounded searches: an unbounded one from outside the model (the last copy's vertices land
+    // there) visits much of the tree.
     let diffs: Vec<Point3> = features.dense[..features.num_vertex_points]
         .par_iter()
         .filter_map(|&v| {
             let q = [v[0] + t[0], v[1] + t[1], v[2] + t[2]];
-            let nb = tree.nearest(q);
-            (nb.distance <= radius).then(|| sub(targets[nb.index], v))
+            tree.within_unsorted(q, radius)
+                .into_iter()
+                .min_by(|a, b| a.distance.total_cmp(&b.distance).then(a.index.cmp(&b.index)))
+                .map(|nb| sub(targets[nb.index], v))
         })
         .collect();
     let key = |d: Point3| d.map(|c| (c / SNAP_CELL).floor() as i64);

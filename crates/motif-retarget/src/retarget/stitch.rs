@@ -184,6 +184,8 @@ pub(crate) fn stitch(
 /// vertex on it (within `tol`), the triangle is split at that vertex. This happens when the two
 /// sides of a seam were tessellated differently, e.g. pieces of a large triangle cut at voxel
 /// faces ([`super::TriangleAssignment::Cut`]). Iterates until no boundary edge has a vertex on it.
+/// Every boundary edge is examined, not only those on seams: a split only re-tessellates (the
+/// vertex lies on the edge within `tol`), so an input's own open boundary keeps its shape.
 fn split_t_junctions(mesh: &mut TriMesh, triangle_voxels: &mut Vec<u32>, tol: f64) {
     for _round in 0..8 {
         // Boundary edges as (triangle, corner k): the edge from corner k to corner k + 1.
@@ -214,9 +216,10 @@ fn split_t_junctions(mesh: &mut TriMesh, triangle_voxels: &mut Vec<u32>, tol: f6
             let t = mesh.triangles[f as usize];
             (t[k as usize], t[(k as usize + 1) % 3])
         };
-        // Boundary vertices sorted along the axis of their largest extent; each edge looks at
-        // the vertices whose coordinate on that axis lies within its span (a grid keyed on the
-        // edge length degenerates when a few long edges meet many short ones).
+        // Boundary vertices sorted along each axis; each edge scans, on the axis where that is
+        // fewest, the vertices whose coordinate lies within its span widened by `tol` (a grid
+        // keyed on the edge length degenerates when a few long edges meet many short ones, and
+        // one fixed axis when many vertices share a seam plane across it).
         let mut seen = vec![false; mesh.positions.len()];
         let mut verts: Vec<u32> = Vec::new();
         for &(f, k) in &boundary {
@@ -227,19 +230,14 @@ fn split_t_junctions(mesh: &mut TriMesh, triangle_voxels: &mut Vec<u32>, tol: f6
                 }
             }
         }
-        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-        for &v in &verts {
-            let p = mesh.positions[v as usize];
-            for i in 0..3 {
-                lo[i] = lo[i].min(p[i]);
-                hi[i] = hi[i].max(p[i]);
-            }
-        }
-        let axis = (0..3).max_by(|&i, &j| (hi[i] - lo[i]).total_cmp(&(hi[j] - lo[j]))).unwrap_or(0);
-        verts.sort_unstable_by(|&u, &w| {
-            mesh.positions[u as usize][axis].total_cmp(&mesh.positions[w as usize][axis]).then(u.cmp(&w))
+        let sorted: [(Vec<u32>, Vec<f64>); 3] = std::array::from_fn(|axis| {
+            let mut vs = verts.clone();
+            vs.sort_unstable_by(|&u, &w| {
+                mesh.positions[u as usize][axis].total_cmp(&mesh.positions[w as usize][axis]).then(u.cmp(&w))
+            });
+            let coord = vs.iter().map(|&v| mesh.positions[v as usize][axis]).collect();
+            (vs, coord)
         });
-        let coord: Vec<f64> = verts.iter().map(|&v| mesh.positions[v as usize][axis]).collect();
         // For every boundary edge, the boundary vertices strictly inside it, by parameter.
         let mut splits: HashMap<u32, Vec<(u8, Vec<u32>)>> = HashMap::new();
         let mut on: Vec<(f64, u32)> = Vec::new();
@@ -251,12 +249,16 @@ fn split_t_junctions(mesh: &mut TriMesh, triangle_voxels: &mut Vec<u32>, tol: f6
             if len2 <= tol * tol {
                 continue;
             }
-            let (c0, c1) = (pa[axis].min(pb[axis]) - tol, pa[axis].max(pb[axis]) + tol);
+            let window = |axis: usize| {
+                let coord = &sorted[axis].1;
+                let (c0, c1) = (pa[axis].min(pb[axis]) - tol, pa[axis].max(pb[axis]) + tol);
+                coord.partition_point(|&c| c < c0)..coord.partition_point(|&c| c <= c1)
+            };
+            let (axis, range) =
+                (0..3).map(|axis| (axis, window(axis))).min_by_key(|(_, r)| r.len()).unwrap_or((0, 0..0));
+            let candidates = &sorted[axis].0[range];
             on.clear();
-            for (i, &v) in verts.iter().enumerate().skip(coord.partition_point(|&c| c < c0)) {
-                if coord[i] > c1 {
-                    break;
-                }
+            for &v in candidates {
                 if v == a || v == b {
                     continue;
                 }
