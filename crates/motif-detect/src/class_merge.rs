@@ -25,7 +25,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::grid::SpatialHash;
-use crate::instances::{Class, InstanceOptions, kabsch};
+use crate::instances::{Class, InstanceOptions, crease_samples, kabsch, surface_hit_fraction};
 
 /// Whether classes are merged after the MDL rounds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -47,17 +47,7 @@ const ICP_ITERATIONS: usize = 8;
 
 /// The crease points inside an instance box, at most [`SAMPLE_POINTS`], in index order.
 fn region(surface: &SpatialHash, aabb: &motif_core::geometry::Aabb) -> Vec<Point3> {
-    let c = aabb.center();
-    let mut v = Vec::new();
-    surface.for_each_within(c, aabb.diagonal() / 2.0, |i, _| {
-        let p = surface.point(i);
-        if aabb.contains(p) {
-            v.push((i, p));
-        }
-    });
-    v.sort_unstable_by_key(|x| x.0);
-    let step = v.len().div_ceil(SAMPLE_POINTS).max(1);
-    v.into_iter().step_by(step).map(|x| x.1).collect()
+    crease_samples(surface, aabb.center(), aabb.diagonal() / 2.0, SAMPLE_POINTS, |p| aabb.contains(p))
 }
 
 fn centroid(p: &[Point3]) -> nalgebra::Vector3<f64> {
@@ -94,16 +84,7 @@ fn surface_distance(a: &[Point3], b: &[Point3], surface: &SpatialHash, tol: f64,
             None => break,
         }
     }
-    let hits = |pts: &[Point3], t: &nalgebra::Isometry3<f64>| {
-        pts.iter()
-            .filter(|p| {
-                let q = t * nalgebra::Point3::new(p[0], p[1], p[2]);
-                surface.nearest_within([q.x, q.y, q.z], tol).is_some()
-            })
-            .count() as f64
-            / pts.len() as f64
-    };
-    1.0 - hits(a, &t).max(hits(b, &t.inverse()))
+    1.0 - surface_hit_fraction(a, &t, surface, tol).max(surface_hit_fraction(b, &t.inverse(), surface, tol))
 }
 
 /// Joins classes that describe the same block (see the module documentation); returns the

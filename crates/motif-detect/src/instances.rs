@@ -473,40 +473,21 @@ pub fn detect_instances(
                         let c =
                             [(r.lo[0] + r.hi[0]) / 2.0, (r.lo[1] + r.hi[1]) / 2.0, (r.lo[2] + r.hi[2]) / 2.0];
                         let half = [ext[0] / 2.0, ext[1] / 2.0, ext[2] / 2.0];
-                        let mut v = Vec::new();
-                        surface.for_each_within(
-                            c,
-                            (half[0] * half[0] + half[1] * half[1] + half[2] * half[2]).sqrt(),
-                            |i, _| {
-                                let p = surface.point(i);
-                                if (0..3).all(|d| (p[d] - c[d]).abs() <= half[d]) {
-                                    v.push((i, p));
-                                }
-                            },
-                        );
-                        v.sort_unstable_by_key(|x| x.0);
-                        let step = v.len().div_ceil(SURFACE_SAMPLES).max(1);
-                        v.into_iter().step_by(step).map(|x| x.1).collect()
+                        let radius = (half[0] * half[0] + half[1] * half[1] + half[2] * half[2]).sqrt();
+                        crease_samples(surface, c, radius, SURFACE_SAMPLES, |p| {
+                            (0..3).all(|d| (p[d] - c[d]).abs() <= half[d])
+                        })
                     })
                     .collect();
                 let dist = pairwise(raw.len(), |a, b| {
                     let (pa, pb) = correspondences(&raw[a], &raw[b], features);
                     let Some(b_from_a) = kabsch(&pa, &pb) else { return 1.0 };
                     let a_from_b = b_from_a.inverse();
-                    let hit = |x: usize, t: &nalgebra::Isometry3<f64>| {
-                        regions[x]
-                            .iter()
-                            .filter(|&&p| {
-                                let q = t * nalgebra::Point3::new(p[0], p[1], p[2]);
-                                surface.nearest_within([q.x, q.y, q.z], tol).is_some()
-                            })
-                            .count()
-                    };
                     if regions[a].is_empty() || regions[b].is_empty() {
                         return 1.0;
                     }
-                    let fa = hit(a, &b_from_a) as f64 / regions[a].len() as f64;
-                    let fb = hit(b, &a_from_b) as f64 / regions[b].len() as f64;
+                    let fa = surface_hit_fraction(&regions[a], &b_from_a, surface, tol);
+                    let fb = surface_hit_fraction(&regions[b], &a_from_b, surface, tol);
                     1.0 - fa.max(fb)
                 });
                 split_by_linkage(
@@ -584,6 +565,48 @@ fn correspondences(a: &RawInstance, b: &RawInstance, features: &[Feature]) -> (V
         }
     }
     (pa, pb)
+}
+
+/// The crease points of `surface` within `radius` of `centre` that pass `inside`, at most `max`
+/// of them: an even subset in point-index order (deterministic).
+pub(crate) fn crease_samples(
+    surface: &SpatialHash,
+    centre: Point3,
+    radius: f64,
+    max: usize,
+    inside: impl Fn(Point3) -> bool,
+) -> Vec<Point3> {
+    let mut v = Vec::new();
+    surface.for_each_within(centre, radius, |i, _| {
+        let p = surface.point(i);
+        if inside(p) {
+            v.push((i, p));
+        }
+    });
+    v.sort_unstable_by_key(|x| x.0);
+    let step = v.len().div_ceil(max).max(1);
+    v.into_iter().step_by(step).map(|x| x.1).collect()
+}
+
+/// Share of `points` that land within `tol` of a crease point of `surface` when moved by `t`
+/// (0 for no points).
+pub(crate) fn surface_hit_fraction(
+    points: &[Point3],
+    t: &nalgebra::Isometry3<f64>,
+    surface: &SpatialHash,
+    tol: f64,
+) -> f64 {
+    if points.is_empty() {
+        return 0.0;
+    }
+    let hits = points
+        .iter()
+        .filter(|p| {
+            let q = t * nalgebra::Point3::new(p[0], p[1], p[2]);
+            surface.nearest_within([q.x, q.y, q.z], tol).is_some()
+        })
+        .count();
+    hits as f64 / points.len() as f64
 }
 
 /// The rigid motion that best maps `from` onto `to` in the least-squares sense (Kabsch), or
