@@ -311,3 +311,41 @@ fn grid_models_of_the_shared_data() {
     }
     assert!(failures.is_empty(), "manifest claims not met: {failures:?}");
 }
+
+/// The distances kept by the matching step (thesis 4.2.2) are the L2 distances of the features'
+/// descriptors, within the table's 16-bit quantisation; the matches do not change when they are
+/// kept; and nothing is kept above the size limit.
+#[test]
+fn matching_keeps_the_pairwise_descriptor_distances() {
+    use motif_retarget::offsets::{match_features, match_features_keeping_distances, prepare_features};
+    let mesh = generate("fence", 0).expect("fence").mesh;
+    let options = OffsetOptions::default();
+    let features = prepare_features(&mesh, &options, &NoProgress).expect("features");
+    let plain = match_features(&features, &[0.15], &NoProgress).expect("matches");
+    let (kept, table) =
+        match_features_keeping_distances(&features, &[0.15], usize::MAX, &NoProgress).expect("matches");
+    assert_eq!(plain, kept);
+    let table = table.expect("table");
+    let valid: Vec<usize> = (0..features.len()).filter(|&i| features.valid[i]).collect();
+    assert_eq!(table.len(), valid.len());
+    assert!(valid.len() > 300, "{} features", valid.len());
+    let l2 = |a: usize, b: usize| {
+        let (x, y) = (features.descriptor(a), features.descriptor(b));
+        x.iter().zip(y).map(|(p, q)| ((p - q) as f64).powi(2)).sum::<f64>().sqrt()
+    };
+    let mut worst: f64 = 0.0;
+    for (k, &a) in valid.iter().enumerate().step_by(7) {
+        for &b in valid.iter().skip(k) {
+            let d = table.distance(a, b).expect("both valid");
+            worst = worst.max((d - l2(a, b)).abs());
+            assert_eq!(table.distance(b, a), Some(d));
+        }
+    }
+    assert!(worst < 5e-5, "largest error {worst}");
+    if let Some(bad) = (0..features.len()).find(|&i| !features.valid[i]) {
+        assert_eq!(table.distance(bad, valid[0]), None);
+    }
+    let (_, none) =
+        match_features_keeping_distances(&features, &[0.15], valid.len() - 1, &NoProgress).expect("matches");
+    assert!(none.is_none());
+}

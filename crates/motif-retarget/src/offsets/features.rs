@@ -19,6 +19,7 @@
 //! so they are part of the descriptors' support exactly once and the dense cloud keeps its spacing
 //! around them; their normals are the mesh's area-weighted vertex normals.
 
+use std::sync::{Arc, OnceLock};
 use std::time::Instant;
 
 use motif_core::Point3;
@@ -33,6 +34,7 @@ use motif_core::spatial::KdTree;
 use serde::{Deserialize, Serialize};
 
 use super::error::{OffsetsError, Result};
+use super::matching::DescriptorDistances;
 use super::{Density, OffsetOptions, VertexFeatures};
 
 /// The similarity transform that scales a model so that its largest bounding-box dimension spans
@@ -130,9 +132,19 @@ pub struct OffsetFeatures {
     pub feature_spacing: f64,
     /// Stage timings.
     pub timings: FeatureTimings,
+    /// The pairwise descriptor distances of the matching step, kept by [`super::analyze_features`]
+    /// for the retargeting MRF (thesis 4.2.2); see [`OffsetFeatures::descriptor_distances`].
+    pub(crate) distances: OnceLock<Arc<DescriptorDistances>>,
 }
 
 impl OffsetFeatures {
+    /// The descriptor distances between all pairs of features, when [`super::analyze_features`]
+    /// kept them (at most [`super::OffsetOptions::keep_distances_up_to`] features with a
+    /// descriptor); the retargeting MRF then computes its Hausdorff distances from them.
+    pub fn descriptor_distances(&self) -> Option<&Arc<DescriptorDistances>> {
+        self.distances.get()
+    }
+
     /// Number of features.
     pub fn len(&self) -> usize {
         self.features.len()
@@ -296,5 +308,6 @@ pub fn prepare_features(
         dense_spacing,
         feature_spacing,
         timings: FeatureTimings { sampling, tree: tree_time, shot },
+        distances: OnceLock::new(),
     })
 }

@@ -46,7 +46,7 @@ use serde::{Deserialize, Serialize};
 pub use error::{OffsetsError, Result};
 pub use features::{FeatureKind, FeatureTimings, Normalisation, OffsetFeatures, prepare_features};
 pub use histogram::{HistogramBin, HistogramPeak, OffsetHistogram, SignConvention};
-pub use matching::{FeatureMatch, match_features};
+pub use matching::{DescriptorDistances, FeatureMatch, match_features, match_features_keeping_distances};
 pub use refine::{IcpSummary, PeriodCandidate, VertexSnap};
 
 use refine::Prober;
@@ -214,6 +214,11 @@ pub struct OffsetOptions {
     /// Snap each principal offset to the exact vertex-to-vertex translation of the mesh near it,
     /// when there is one (see [`refine::snap_to_vertices`]; not in the thesis); default true.
     pub snap_to_vertices: bool,
+    /// Keep the descriptor distances of all feature pairs computed by matching, for the
+    /// retargeting MRF's Hausdorff distances (thesis 4.2.2), when at most this many features have
+    /// a descriptor (the table takes about n² bytes: 64 MiB for the default); 0 keeps none. Default
+    /// 8192.
+    pub keep_distances_up_to: usize,
     /// Seed of every random choice (sampling); default 0.
     pub seed: u64,
 }
@@ -246,6 +251,7 @@ impl Default for OffsetOptions {
             },
             min_contrast: 0.1,
             snap_to_vertices: true,
+            keep_distances_up_to: 8192,
             seed: 0,
         }
     }
@@ -530,7 +536,13 @@ pub fn analyze_features(
     let nz = &features.normalisation;
 
     let t = Instant::now();
-    let matches = match_features(features, &[options.tau], progress)?.into_iter().next().unwrap_or_default();
+    let (matches, distances) =
+        match_features_keeping_distances(features, &[options.tau], options.keep_distances_up_to, progress)?;
+    let matches = matches.into_iter().next().unwrap_or_default();
+    if let Some(d) = distances {
+        // Features analysed twice keep the first table (the same distances).
+        let _ = features.distances.set(std::sync::Arc::new(d));
+    }
     let matching = t.elapsed().as_secs_f64();
 
     let t = Instant::now();

@@ -47,7 +47,7 @@ use crate::alpha_expansion::{AlphaExpansion, AlphaExpansionOptions, AlphaExpansi
 
 use super::BoundaryMode;
 use super::error::RetargetResult;
-use super::voxels::{VoxelDescriptors, VoxelGrid, hausdorff_with_norms, squared_norms};
+use super::voxels::{VoxelDescriptors, VoxelGrid, squared_norms};
 
 /// The offset labels of eq. 4.2 for given steps.
 #[derive(Debug, Clone, PartialEq)]
@@ -154,16 +154,15 @@ fn distance_table(
     }
     missing.sort_unstable();
     missing.dedup();
-    // Each voxel takes part in many pairs: its rows' norms are computed once.
-    let norms = if missing.is_empty() { Vec::new() } else { squared_norms(&descriptors.rows) };
-    let norms_of = |v: usize| &norms[descriptors.start[v] as usize..descriptors.start[v + 1] as usize];
-    let computed: Vec<f64> = missing
-        .par_iter()
-        .map(|&(s, t)| {
-            let (s, t) = (s as usize, t as usize);
-            hausdorff_with_norms(descriptors.of(s), norms_of(s), descriptors.of(t), norms_of(t))
-        })
-        .collect();
+    // Each voxel takes part in many pairs: its rows' norms are computed once (when some pair is
+    // not in the matching step's distance table).
+    let norms = if missing.is_empty() || !descriptors.needs_norms() {
+        Vec::new()
+    } else {
+        squared_norms(&descriptors.rows)
+    };
+    let computed: Vec<f64> =
+        missing.par_iter().map(|&(s, t)| descriptors.hausdorff(s as usize, t as usize, &norms)).collect();
     for (k, d) in missing.iter().zip(&computed) {
         cache.insert(*k, *d);
     }

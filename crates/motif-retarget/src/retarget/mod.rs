@@ -49,7 +49,11 @@
 //!   exactly what a copy of x carries; the descriptors' support (radius 0.2) reaches beyond the
 //!   voxel, as in the thesis where they come from the offset detection. A voxel with triangles but
 //!   no feature gets its dense samples (or triangle centroids) as keypoints, so "empty" always
-//!   means "no triangles". The distances are computed once per voxel pair and cached.
+//!   means "no triangles". The distances are computed once per voxel pair and cached. With
+//!   [`RetargetSession::with_features`], d_H is read from the descriptor distances that the
+//!   matching step already computed for every pair of features (thesis 4.2.2: they "can be reused
+//!   here"; [`crate::offsets::DescriptorDistances`]); only voxels described by fallback keypoints
+//!   compute theirs from the descriptors.
 //! - **Triangles** belong to the voxel containing their centroid; a centroid on a voxel face (a
 //!   board's end face on a cell boundary) is probed 10⁻⁶ cells inwards against the face normal, so
 //!   a face goes with the solid it bounds. [`TriangleAssignment::Cut`] first cuts triangles at
@@ -404,7 +408,9 @@ impl RetargetSession {
     /// [`RetargetSession::new`] reusing the features and SHOT descriptors that the offset
     /// detection prepared for the same mesh ([`crate::offsets::prepare_features`]), as thesis
     /// 4.2.2 suggests ("the pairwise feature distances have already been computed in the previous
-    /// step … and can be reused here"): no sampling and (almost) no SHOT here. The sampling options
+    /// step … and can be reused here"): no sampling and (almost) no SHOT here, and when
+    /// [`crate::offsets::analyze_features`] kept the matching step's distances
+    /// ([`OffsetFeatures::descriptor_distances`]) the Hausdorff distances are looked up in them. The sampling options
     /// of `options` are then unused; keep `shot_radius` equal to the detection's.
     ///
     /// # Errors

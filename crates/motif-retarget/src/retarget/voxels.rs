@@ -20,6 +20,8 @@
 //! with triangles but no feature (a small piece) gets its dense samples as keypoints, or failing
 //! those its triangles' centroids, so that "non-empty" always means "has triangles".
 
+use std::sync::Arc;
+
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatRef, Par};
 use motif_core::geometry::{Point3, add, scale, sub};
@@ -34,7 +36,7 @@ use rayon::prelude::*;
 
 use super::canonical::Lattice;
 use super::error::RetargetResult;
-use crate::offsets::OffsetFeatures;
+use crate::offsets::{DescriptorDistances, OffsetFeatures};
 
 /// A regular grid of voxels in canonical space.
 #[derive(Debug, Clone, PartialEq)]
@@ -157,6 +159,12 @@ pub(crate) struct VoxelDescriptors {
     pub num_keypoints: usize,
     /// Keypoints with a valid descriptor.
     pub num_valid: usize,
+    /// Per row, its index in `table` (the feature's compact index in the matching step's
+    /// distance table), or `u32::MAX` for rows without one (fallback keypoints, or no table).
+    pub keys: Vec<u32>,
+    /// The matching step's pairwise descriptor distances (thesis 4.2.2), when the rows came from
+    /// the offset detection's features and it kept them.
+    pub table: Option<Arc<DescriptorDistances>>,
 }
 
 impl VoxelDescriptors {
@@ -165,6 +173,63 @@ impl VoxelDescriptors {
     pub fn of(&self, v: usize) -> &[f32] {
         &self.rows[self.start[v] as usize * SHOT_LEN..self.start[v + 1] as usize * SHOT_LEN]
     }
+
+    /// The table keys of voxel `v`'s rows, when every row has one (they are then strictly
+    /// ascending, as [`hausdorff_lookup`] needs: rows are stored in feature order).
+    #[inline]
+    fn keys_of(&self, v: usize) -> Option<&[u32]> {
+        let k = self.keys.get(self.start[v] as usize..self.start[v + 1] as usize)?;
+        let usable = self.table.is_some()
+            && !k.is_empty()
+            && k[k.len() - 1] != u32::MAX
+            && k.windows(2).all(|w| w[0] < w[1]);
+        usable.then_some(k)
+    }
+
+    /// d_H between the descriptor sets of voxels `s` and `t`: looked up in the matching step's
+    /// distance table when both sets are in it (thesis 4.2.2), otherwise computed by
+    /// [`hausdorff_with_norms`] (`norms` = [`squared_norms`] of all rows).
+    pub fn hausdorff(&self, s: usize, t: usize, norms: &[f32]) -> f64 {
+        if let (Some(table), Some(a), Some(b)) = (&self.table, self.keys_of(s), self.keys_of(t)) {
+            return hausdorff_lookup(table, a, b);
+        }
+        let norms_of = |v: usize| &norms[self.start[v] as usize..self.start[v + 1] as usize];
+        hausdorff_with_norms(self.of(s), norms_of(s), self.of(t), norms_of(t))
+    }
+
+    /// Whether [`VoxelDescriptors::hausdorff`] needs the rows' squared norms for some pair.
+    pub fn needs_norms(&self) -> bool {
+        self.table.is_none() || self.keys.contains(&u32::MAX)
+    }
+}
+
+/// d_H from a distance table: the larger of the two directed distances
+/// `max_a min_b d(a, b)` and `max_b min_a d(a, b)` over the quantised table entries (a `u16`
+/// minimum per row and per column). Both key lists are ascending (rows are stored in feature
+/// order), so for each `i` of `a` the keys of `b` above `i` are read along row `i` of the table
+/// and those below along column `i`, without a branch per entry.
+fn hausdorff_lookup(table: &DescriptorDistances, a: &[u32], b: &[u32]) -> f64 {
+    let mut col_min = vec![u16::MAX; b.len()];
+    let mut worst = 0u16;
+    for &i in a {
+        let split = b.partition_point(|&j| j < i);
+        let mut row_min = u16::MAX;
+        let (lo, hi) = b.split_at(split);
+        let (col_lo, col_hi) = col_min.split_at_mut(split);
+        for (c, &j) in col_lo.iter_mut().zip(lo) {
+            let d = table.quantised_ordered(j, i);
+            row_min = row_min.min(d);
+            *c = (*c).min(d);
+        }
+        for (c, &j) in col_hi.iter_mut().zip(hi) {
+            let d = if j == i { 0 } else { table.quantised_ordered(i, j) };
+            row_min = row_min.min(d);
+            *c = (*c).min(d);
+        }
+        worst = worst.max(row_min);
+    }
+    worst = col_min.iter().fold(worst, |w, &c| w.max(c));
+    DescriptorDistances::dequantise(worst)
 }
 
 /// Samples the normalised mesh, describes its features with SHOT and groups the descriptors by
@@ -355,19 +420,23 @@ pub(crate) fn describe_from_features(
     }
     let total = count[n] as usize;
     let mut rows = vec![0f32; total * SHOT_LEN];
+    let mut keys = vec![u32::MAX; total];
+    let table = features.descriptor_distances().cloned();
     let mut fill = count.clone();
-    let mut put = |v: usize, d: &[f32]| {
+    let mut put = |v: usize, d: &[f32], key: Option<u32>| {
         let r = fill[v] as usize;
         rows[r * SHOT_LEN..(r + 1) * SHOT_LEN].copy_from_slice(d);
+        keys[r] = key.unwrap_or(u32::MAX);
         fill[v] += 1;
     };
     for &(v, i) in &entries {
-        put(v, &features.descriptors[i * SHOT_LEN..(i + 1) * SHOT_LEN]);
+        let key = table.as_ref().and_then(|t| t.compact_index(i));
+        put(v, &features.descriptors[i * SHOT_LEN..(i + 1) * SHOT_LEN], key);
     }
     if let Some(extra) = &extra {
         for (j, &k) in fallback.iter().enumerate() {
             if let (true, Some(d)) = (extra.valid[j], extra.descriptor(j)) {
-                put(voxel_of_point(k), d);
+                put(voxel_of_point(k), d, None);
             }
         }
     }
@@ -378,6 +447,8 @@ pub(crate) fn describe_from_features(
         num_samples: features.dense.len(),
         num_keypoints: entries.len() + fallback.len(),
         num_valid: total,
+        keys,
+        table,
     };
     Ok((out, t0.elapsed().as_secs_f64() * 1e3))
 }
@@ -491,6 +562,54 @@ mod tests {
             let got = hausdorff(&a, &b);
             assert!((got - want).abs() < 1e-3 * want.max(1.0), "{na}x{nb}: {got} vs {want}");
         }
+    }
+
+    /// Thesis 4.2.2's reuse of the matching step's distances: on the generated facade, every d_H
+    /// that the table gives equals the one computed from the descriptors (GEMM), within the
+    /// table's 16-bit quantisation; and both kinds of voxel sets (table keys, fallback rows) occur.
+    #[test]
+    fn distances_from_the_matching_table_equal_computed_ones() {
+        use crate::offsets::{OffsetOptions, analyze_features, prepare_features};
+        use motif_core::progress::NoProgress;
+        let ex = motif_core::procedural::generate("facade", 0).expect("facade");
+        let options = OffsetOptions::default();
+        let features = prepare_features(&ex.mesh, &options, &NoProgress).expect("features");
+        assert!(features.descriptor_distances().is_none(), "no table before matching");
+        analyze_features(&features, &options, &NoProgress).expect("analysis");
+        let table = features.descriptor_distances().expect("the matching step kept its distances");
+        assert_eq!(table.len(), features.valid.iter().filter(|&&v| v).count());
+        let normalisation = super::super::canonical::normalisation_of(&ex.mesh).expect("bounds");
+        let lattice = Lattice::from_offsets(normalisation, &ex.structure.cell_pitch, 0.2).expect("lattice");
+        let grid = VoxelGrid::covering(&lattice, &ex.mesh.positions);
+        let tri_voxel = assign_triangles(&ex.mesh, &lattice, &grid);
+        let mut occupied = vec![false; grid.len()];
+        for &v in &tri_voxel {
+            occupied[v as usize] = true;
+        }
+        let (d, _) = describe_from_features(&features, &lattice, &grid, occupied, 0.2, &NoProgress)
+            .expect("descriptors");
+        let norms = squared_norms(&d.rows);
+        let norms_of = |v: usize| &norms[d.start[v] as usize..d.start[v + 1] as usize];
+        let keyed: Vec<usize> = (0..grid.len()).filter(|&v| d.keys_of(v).is_some()).collect();
+        assert!(keyed.len() >= 10, "{} voxels with table keys", keyed.len());
+        let mut compared = 0;
+        for (k, &s) in keyed.iter().enumerate() {
+            for &t in &keyed[k + 1..] {
+                let looked_up = d.hausdorff(s, t, &norms);
+                let computed = hausdorff_with_norms(d.of(s), norms_of(s), d.of(t), norms_of(t));
+                assert!((looked_up - computed).abs() < 1e-4, "voxels {s}, {t}: {looked_up} vs {computed}");
+                compared += 1;
+            }
+        }
+        assert!(compared >= 45);
+        // A set without keys falls back to the computed distance.
+        let mut no_table = d.clone();
+        no_table.table = None;
+        let (s, t) = (keyed[0], keyed[1]);
+        assert_eq!(
+            no_table.hausdorff(s, t, &norms),
+            hausdorff_with_norms(d.of(s), norms_of(s), d.of(t), norms_of(t))
+        );
     }
 
     #[test]
