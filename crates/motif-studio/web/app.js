@@ -591,7 +591,8 @@ function onGizmoMove() {
   requestFrame();
 }
 // One drag request in flight at a time; moves meanwhile only mark a frame as wanted, and the
-// newest gizmo pose is sent when the frame lands (the server also drops stale requests).
+// newest gizmo pose is sent as soon as the previous frame's positions arrive, before they are
+// drawn (the server also drops stale requests).
 function requestFrame() {
   if (!handles.length) return;
   if (inFlight || handlesPending) { wantFrame = true; return; }
@@ -619,6 +620,13 @@ function onFrame(head, pos, normals, tRecv) {
   if (!attr || attr.array.length !== pos.length || !gpuPositions) { if (t0 !== undefined) inFlight = false; return; }
   attr.array.set(pos);
   const tDecoded = performance.now();
+  // Pipelined: the newest pose goes out before this frame is drawn, so the server solves it while
+  // the page uploads and draws, and the time between drawn frames is the slower of the two rather
+  // than their sum. Still one request in flight: poses that go stale meanwhile are dropped.
+  if (t0 !== undefined) {
+    inFlight = false;
+    if (wantFrame) requestFrame();
+  }
   gl.bindBuffer(gl.ARRAY_BUFFER, gpuPositions);
   gl.bufferSubData(gl.ARRAY_BUFFER, 0, pos);
   if (normals) { gl.bindBuffer(gl.ARRAY_BUFFER, gpuNormals); gl.bufferSubData(gl.ARRAY_BUFFER, 0, normals); }
@@ -647,9 +655,8 @@ function onFrame(head, pos, normals, tRecv) {
     const recent = state.frameTimes.slice(-60).sort((a, b) => a - b);
     state.medianFrameMs = recent[Math.floor(recent.length / 2)];
     updateHud();
-    inFlight = false;
   }
-  if (wantFrame) requestFrame();
+  if (wantFrame && !inFlight) requestFrame();
   else if (releaseWanted && !inFlight) { send({ type: 'release' }); releaseWanted = false; }
 }
 function updateHud() {
