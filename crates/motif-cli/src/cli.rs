@@ -519,6 +519,10 @@ pub struct BenchRetargetArgs {
     /// Skip the mrf_grid_v1 solver table.
     #[arg(long, conflicts_with = "large")]
     pub no_grids: bool,
+    /// Folder of the shared meshes (default: $MOTIF_DATA, or shared/data above the current
+    /// folder), for the rows of real grid-like models.
+    #[arg(long, value_name = "DIR")]
+    pub data: Option<std::path::PathBuf>,
     #[command(flatten)]
     pub json: JsonArg,
 }
