@@ -220,17 +220,14 @@ pub fn match_features_keeping_distances(
                     let gq = q0 + qi;
                     let p = pos[gq];
                     let row = &mut best[qi * nt..(qi + 1) * nt];
-                    if keep && t1 > gq + 1 {
-                        // Row gq of the triangle holds targets gq + 1 .. n.
-                        let row_base = DescriptorDistances::row_start(n, gq) - kept_base;
-                        for gt in (gq + 1).max(t0)..t1 {
-                            let d2 = (sq[gq] + sq[gt] - 2.0 * dst[(qi, gt - t0)]).max(0.0);
-                            kept[row_base + (gt - gq - 1)] = DescriptorDistances::quantise(d2.sqrt());
-                        }
-                    }
+                    // Row gq of the kept triangle holds targets gq + 1 .. n.
+                    let row_base = if keep { DescriptorDistances::row_start(n, gq) - kept_base } else { 0 };
                     for tj in 0..(t1 - t0) {
                         let gt = t0 + tj;
                         let d2 = (sq[gq] + sq[gt] - 2.0 * dst[(qi, tj)]).max(0.0);
+                        if keep && gt > gq {
+                            kept[row_base + (gt - gq - 1)] = DescriptorDistances::quantise(d2.sqrt());
+                        }
                         // The largest threshold's best is the worst of all: nothing above it helps.
                         if d2 > row[nt - 1].0 {
                             continue;

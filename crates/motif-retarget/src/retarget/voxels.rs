@@ -566,7 +566,7 @@ mod tests {
 
     /// Thesis 4.2.2's reuse of the matching step's distances: on the generated facade, every d_H
     /// that the table gives equals the one computed from the descriptors (GEMM), within the
-    /// table's 16-bit quantisation; and both kinds of voxel sets (table keys, fallback rows) occur.
+    /// table's 16-bit quantisation; without the table the computed distance is used.
     #[test]
     fn distances_from_the_matching_table_equal_computed_ones() {
         use crate::offsets::{OffsetOptions, analyze_features, prepare_features};
