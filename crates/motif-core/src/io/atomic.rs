@@ -1,5 +1,11 @@
 //! Atomic file replacement: write a temporary file next to the target, fsync it, rename it over
 //! the target. Readers see the old file or the new one, never a half-written one.
+//!
+//! Two kinds of targets are not replaced: a symbolic link is followed (the file it points to is
+//! replaced and the link kept, as editors do), and a device, FIFO or socket (`/dev/null`,
+//! `/dev/stdout`, a named pipe) is written through like `cat > path` would. Renaming a temporary
+//! file over those would replace the link or the device node itself: run as root, `-o /dev/null`
+//! once turned the machine's `/dev/null` into a regular file.
 
 use std::fs::{self, File, OpenOptions};
 use std::io::{self, BufWriter, Write};
@@ -16,6 +22,11 @@ use crate::{Error, Result};
 ///
 /// Used by every mesh writer and by other writers of the project (CSV, JSON).
 pub fn write_atomic(path: &Path, f: impl FnOnce(&mut dyn Write) -> io::Result<()>) -> Result<()> {
+    let resolved = follow_links(path);
+    let path = resolved.as_path();
+    if fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir()) {
+        return write_through(path, f);
+    }
     let name = path.file_name().ok_or_else(|| {
         Error::io(path, io::Error::new(io::ErrorKind::InvalidInput, "the path names no file"))
     })?;
@@ -41,6 +52,31 @@ pub fn write_atomic(path: &Path, f: impl FnOnce(&mut dyn Write) -> io::Result<()
         // The guard removes the temporary file.
         Err(e) => Err(Error::io(path, e)),
     }
+}
+
+/// The path a chain of symbolic links ends at (the path itself when it is no link; a dangling
+/// link gives the missing file it names). At most 40 links are followed, as the kernel does.
+fn follow_links(path: &Path) -> PathBuf {
+    let mut p = path.to_path_buf();
+    for _ in 0..40 {
+        let is_link = fs::symlink_metadata(&p).is_ok_and(|m| m.file_type().is_symlink());
+        let Some(target) = is_link.then(|| fs::read_link(&p).ok()).flatten() else { break };
+        p = match p.parent() {
+            Some(dir) if target.is_relative() => dir.join(target),
+            _ => target,
+        };
+    }
+    p
+}
+
+/// Writes into an existing device, FIFO or socket without replacing it.
+fn write_through(path: &Path, f: impl FnOnce(&mut dyn Write) -> io::Result<()>) -> Result<()> {
+    let result = (|| {
+        let mut w = BufWriter::new(OpenOptions::new().write(true).open(path)?);
+        f(&mut w)?;
+        w.flush()
+    })();
+    result.map_err(|e| Error::io(path, e))
 }
 
 /// Removes the temporary file when dropped, unless disarmed after the rename.
@@ -135,6 +171,43 @@ mod tests {
         });
         assert!(r.is_err());
         assert!(!p.exists());
+        assert!(leftovers(dir.path()).is_empty());
+    }
+
+    /// A symbolic link stays a link; the file it points to gets the new content.
+    #[cfg(unix)]
+    #[test]
+    fn a_symbolic_link_is_followed_and_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("real.txt");
+        fs::write(&target, "old").unwrap();
+        let link = dir.path().join("link.txt");
+        std::os::unix::fs::symlink("real.txt", &link).unwrap();
+        write_atomic(&link, |w| w.write_all(b"new")).unwrap();
+        assert!(fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
+        assert_eq!(fs::read_to_string(&target).unwrap(), "new");
+        assert!(leftovers(dir.path()).is_empty());
+    }
+
+    /// A named pipe is written through and stays a pipe (a rename would have replaced it by a
+    /// regular file, as it once replaced `/dev/null`).
+    #[cfg(unix)]
+    #[test]
+    fn a_named_pipe_is_written_through_and_kept() {
+        use std::io::Read;
+        use std::os::unix::fs::FileTypeExt;
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("pipe");
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+        assert!(made.is_ok_and(|s| s.success()), "mkfifo (coreutils) failed");
+        let reader_path = fifo.clone();
+        let reader = std::thread::spawn(move || {
+            let mut text = String::new();
+            File::open(&reader_path).and_then(|mut f| f.read_to_string(&mut text)).map(|_| text)
+        });
+        write_atomic(&fifo, |w| w.write_all(b"through the pipe")).unwrap();
+        assert!(fs::symlink_metadata(&fifo).unwrap().file_type().is_fifo(), "the pipe was replaced");
+        assert_eq!(reader.join().unwrap().unwrap(), "through the pipe");
         assert!(leftovers(dir.path()).is_empty());
     }
 
