@@ -143,12 +143,16 @@ impl DetectionResult {
         Self::from_json_str(&text, path)
     }
 
-    /// Validates and writes this result to `path` as pretty-printed JSON.
+    /// Validates and writes this result to `path` as pretty-printed JSON, atomically
+    /// ([`motif_core::io::write_atomic`]).
     pub fn write(&self, path: &Path) -> Result<()> {
         self.validate(&path.display().to_string())?;
         let text = serde_json::to_string_pretty(self)
             .map_err(|source| DetectError::Json { path: path.to_path_buf(), source })?;
-        std::fs::write(path, text + "\n")
-            .map_err(|source| DetectError::Io { path: path.to_path_buf(), source })
+        motif_core::io::write_atomic(path, |w| {
+            w.write_all(text.as_bytes())?;
+            w.write_all(b"\n")
+        })?;
+        Ok(())
     }
 }
