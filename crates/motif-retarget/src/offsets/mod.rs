@@ -214,8 +214,9 @@ pub struct OffsetOptions {
     /// Snap each principal offset to the exact vertex-to-vertex translation of the mesh near it,
     /// when there is one (see [`refine::snap_to_vertices`]; not in the thesis); default true.
     pub snap_to_vertices: bool,
-    /// Keep the descriptor distances of all feature pairs computed by matching, for the
-    /// retargeting MRF's Hausdorff distances (thesis 4.2.2), when at most this many features have
+    /// [`analyze_features`] keeps the descriptor distances of all feature pairs computed by
+    /// matching in the features, for the retargeting MRF's Hausdorff distances (thesis 4.2.2;
+    /// [`analyze_offsets`], which drops its features, keeps none), when at most this many features have
     /// a descriptor (the table takes about n² bytes: 64 MiB for the default); 0 keeps none. Default
     /// 8192.
     pub keep_distances_up_to: usize,
@@ -518,7 +519,9 @@ pub fn analyze_offsets(
 ) -> Result<OffsetAnalysis> {
     let t0 = Instant::now();
     let features = prepare_features(mesh, options, progress)?;
-    let mut a = analyze_features(&features, options, progress)?;
+    // The features are dropped here: keeping the matching distances for a retargeting MRF would
+    // be wasted work.
+    let mut a = analyze(&features, options, 0, progress)?;
     a.counts.mesh_vertices = mesh.positions.len();
     a.timings.total = t0.elapsed().as_secs_f64();
     Ok(a)
@@ -531,13 +534,24 @@ pub fn analyze_features(
     options: &OffsetOptions,
     progress: &dyn Progress,
 ) -> Result<OffsetAnalysis> {
+    analyze(features, options, options.keep_distances_up_to, progress)
+}
+
+/// [`analyze_features`], keeping the matching distances in `features` for up to `keep_up_to`
+/// features with a descriptor.
+fn analyze(
+    features: &OffsetFeatures,
+    options: &OffsetOptions,
+    keep_up_to: usize,
+    progress: &dyn Progress,
+) -> Result<OffsetAnalysis> {
     options.validate()?;
     let t_start = Instant::now();
     let nz = &features.normalisation;
 
     let t = Instant::now();
     let (matches, distances) =
-        match_features_keeping_distances(features, &[options.tau], options.keep_distances_up_to, progress)?;
+        match_features_keeping_distances(features, &[options.tau], keep_up_to, progress)?;
     let matches = matches.into_iter().next().unwrap_or_default();
     if let Some(d) = distances {
         // Features analysed twice keep the first table (the same distances).
