@@ -73,6 +73,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             for (m, method) in [(0, Method::EmSc), (1, Method::Sc)] {
                 let mut o = DetectOptions { method, seed, ..Default::default() };
                 o.preprocess.epsilon = Epsilon::Relative(a.epsilon);
+                o.em.min_support = a.min_support;
                 let t = Instant::now();
                 let d = motif_detect::detect(&scene.cloud, "scene", &o, &bar, false)?;
                 let s = t.elapsed().as_secs_f64();
@@ -128,8 +129,8 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     }
     if !crate::output::json_on_stdout(&a.json.json) {
         println!(
-            "{} × {} scenes of {} points, ε = {} × diagonal, τ = {}",
-            a.kind, a.scenes, a.points, a.epsilon, eval.tau
+            "{} × {} scenes of {} points, ε = {} × diagonal, minimum support {}, τ = {}",
+            a.kind, a.scenes, a.points, a.epsilon, a.min_support, eval.tau
         );
         println!("{:<8} {:<24} {:>6} {:>6} {:>6} {:>9}", "level", "method", "P", "R", "F", "median s");
         for r in &rows {
@@ -155,6 +156,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     }
     maybe_json(
         &a.json.json,
-        &serde_json::json!({ "rows": rows, "stages": stages, "epsilon": a.epsilon, "points": a.points }),
+        &serde_json::json!({ "rows": rows, "stages": stages, "epsilon": a.epsilon,
+            "min_support": a.min_support, "points": a.points }),
     )
 }
