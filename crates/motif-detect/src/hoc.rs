@@ -117,6 +117,10 @@ fn flip_permutation() -> Vec<usize> {
     perm
 }
 
+/// Dimensionless curvature κ₁ε below which a point counts as flat (rounding noise of the
+/// quadratic fit, far under any real crease: the feature threshold is ~0.1).
+const FLAT_KAPPA: f64 = 1e-6;
+
 /// Computes the descriptors and canonicalises each feature's y axis in place.
 pub fn compute(pre: &Preprocessed, features: &mut [Feature], o: &HocOptions, seed: u64) -> Descriptors {
     let eps = pre.epsilon;
@@ -126,7 +130,11 @@ pub fn compute(pre: &Preprocessed, features: &mut [Feature], o: &HocOptions, see
     // elimination in a seeded order — distance-based, so the choice is invariant to a rigid
     // motion of the input (a world-axis grid would not be).
     let spacing = (o.support_spacing * eps).max(eps * 1e-6);
-    let curved: Vec<usize> = (0..pre.points.len()).filter(|&i| pre.kappa[i] > 0.0).collect();
+    // "Curved" means above rounding noise: on a flat part κ₁ comes out as ±1e-16/ε, and a
+    // sign test would pick a motion-dependent half of the plane, which reshuffles the seeded
+    // elimination order of everything else (so the descriptors of the whole input changed after
+    // a rigid motion).
+    let curved: Vec<usize> = (0..pre.points.len()).filter(|&i| pre.kappa[i] * eps > FLAT_KAPPA).collect();
     let curved_pts: Vec<Point3> = curved.iter().map(|&i| pre.points[i]).collect();
     let po = PoissonDiscOptions {
         spacing: Spacing::Radius(spacing),

@@ -52,6 +52,9 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     if a.scenes == 0 {
         return Err(bad_input("--scenes must be at least 1"));
     }
+    if !(0.0..=1.0).contains(&a.peak_share) {
+        return Err(bad_input(format!("--peak-share must be between 0 and 1, got {}", a.peak_share)));
+    }
     if let Some(p) = &a.plot {
         check_output(p, &[], g.force)?;
     }
@@ -74,6 +77,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 let mut o = DetectOptions { method, seed, ..Default::default() };
                 o.preprocess.epsilon = Epsilon::Relative(a.epsilon);
                 o.em.min_support = a.min_support;
+                o.em.peak_share = a.peak_share;
                 let t = Instant::now();
                 let d = motif_detect::detect(&scene.cloud, "scene", &o, &bar, false)?;
                 let s = t.elapsed().as_secs_f64();
@@ -129,8 +133,8 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     }
     if !crate::output::json_on_stdout(&a.json.json) {
         println!(
-            "{} × {} scenes of {} points, ε = {} × diagonal, minimum support {}, τ = {}",
-            a.kind, a.scenes, a.points, a.epsilon, a.min_support, eval.tau
+            "{} × {} scenes of {} points, ε = {} × diagonal, minimum support {}, peak share {}, τ = {}",
+            a.kind, a.scenes, a.points, a.epsilon, a.min_support, a.peak_share, eval.tau
         );
         println!("{:<8} {:<24} {:>6} {:>6} {:>6} {:>9}", "level", "method", "P", "R", "F", "median s");
         for r in &rows {
@@ -157,6 +161,6 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     maybe_json(
         &a.json.json,
         &serde_json::json!({ "rows": rows, "stages": stages, "epsilon": a.epsilon,
-            "min_support": a.min_support, "points": a.points }),
+            "min_support": a.min_support, "peak_share": a.peak_share, "points": a.points }),
     )
 }

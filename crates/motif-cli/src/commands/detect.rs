@@ -46,6 +46,7 @@ pub fn options(a: &DetectArgs, g: &GlobalArgs) -> DetectOptions {
     o.dictionary.min_score = a.min_score;
     o.em.iterations = a.em_iterations;
     o.em.min_support = a.min_support;
+    o.em.peak_share = a.peak_share;
     o.em.sigma_s = a.sigma_s;
     o.instances.bandwidth = a.bandwidth;
     o.method = if a.no_em { Method::Sc } else { Method::EmSc };
@@ -72,6 +73,12 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         if !(v.is_finite() && v > 0.0) {
             return Err(crate::output::bad_input(format!("{name} must be positive, got {v}")));
         }
+    }
+    if !(0.0..=1.0).contains(&a.peak_share) {
+        return Err(crate::output::bad_input(format!(
+            "--peak-share must be between 0 and 1, got {}",
+            a.peak_share
+        )));
     }
     if a.words < 2 {
         return Err(crate::output::bad_input(format!("--words must be at least 2, got {}", a.words)));
