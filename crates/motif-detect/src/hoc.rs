@@ -118,7 +118,7 @@ fn flip_permutation() -> Vec<usize> {
 }
 
 /// Dimensionless curvature κ₁ε below which a point counts as flat (rounding noise of the
-/// quadratic fit, far under any real crease: the feature threshold is ~0.1).
+/// quadratic fit; crease points start at κ₁ε = 0.0375 with the default feature threshold).
 const FLAT_KAPPA: f64 = 1e-6;
 
 /// Computes the descriptors and canonicalises each feature's y axis in place.
