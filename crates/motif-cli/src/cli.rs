@@ -713,7 +713,8 @@ pub struct DetectArgs {
     #[arg(long)]
     pub no_em: bool,
     /// ε relative to the principal-axes diagonal (thesis 5.4: 0.0005 for shapes, 0.00005 for city
-    /// scans). Default: the thesis's 0.0005 or the input's own point spacing, whichever is larger.
+    /// scans). Default: the thesis's 0.0005 or 1.02 × the input's median point spacing, whichever
+    /// is larger.
     #[arg(long, conflicts_with = "epsilon_abs")]
     pub epsilon: Option<f64>,
     /// ε in the input's units instead.

@@ -107,6 +107,29 @@ impl Aabb {
         }
     }
 
+    /// The eight corners; corner `k` takes `max` on axis `d` when bit `d` of `k` is set.
+    pub fn corners(&self) -> [Point3; 8] {
+        std::array::from_fn(|k| {
+            std::array::from_fn(|d| if k >> d & 1 == 0 { self.min[d] } else { self.max[d] })
+        })
+    }
+
+    /// The box of this box's corners moved by `f` (for a rigid motion: the axis-aligned box of
+    /// the moved box).
+    ///
+    /// The corners are collected before the box is taken. rustc 1.95.0 at opt-level 3 miscompiled
+    /// the obvious loop (grow an `Option<Aabb>` corner by corner with a quaternion rotation
+    /// inlined): the last corner was dropped from one axis, and detection results changed with
+    /// unrelated edits. Rust 1.97.1 fixes it; `motif_detect::instances` tests it.
+    pub fn mapped(&self, f: impl Fn(Point3) -> Point3) -> Aabb {
+        let c = self.corners().map(f);
+        let mut b = Aabb { min: c[0], max: c[0] };
+        for p in &c[1..] {
+            b.grow(*p);
+        }
+        b
+    }
+
     /// Edge lengths.
     pub fn extent(&self) -> Point3 {
         sub(self.max, self.min)

@@ -620,6 +620,11 @@ pub(crate) fn surface_hit_fraction(
 
 /// The rigid motion that best maps `from` onto `to` in the least-squares sense (Kabsch), or
 /// `None` with fewer than three pairs.
+///
+/// Degenerate pairs get a motion that a rigid motion of the input carries along: when both sets
+/// lie on one line (star models linking features along one crease), the rotation about that line
+/// is not determined and an SVD leaves it to rounding, so the line's direction is turned onto the
+/// other's by the smallest rotation; when the points coincide, the rotation is the identity.
 pub(crate) fn kabsch(from: &[Point3], to: &[Point3]) -> Option<nalgebra::Isometry3<f64>> {
     if from.len() < 3 {
         return None;
@@ -629,19 +634,46 @@ pub(crate) fn kabsch(from: &[Point3], to: &[Point3]) -> Option<nalgebra::Isometr
     let ca = from.iter().fold(nalgebra::Vector3::zeros(), |s, &p| s + v(p)) / n;
     let cb = to.iter().fold(nalgebra::Vector3::zeros(), |s, &p| s + v(p)) / n;
     let mut h = nalgebra::Matrix3::<f64>::zeros();
+    let (mut spread_a, mut spread_b) = (0.0, 0.0);
     for (&a, &b) in from.iter().zip(to) {
         h += (v(a) - ca) * (v(b) - cb).transpose();
+        spread_a += (v(a) - ca).norm_squared();
+        spread_b += (v(b) - cb).norm_squared();
     }
     let svd = h.svd(true, true);
     let (u, vt) = (svd.u?, svd.v_t?);
-    let mut d = nalgebra::Matrix3::<f64>::identity();
-    if (vt.transpose() * u.transpose()).determinant() < 0.0 {
-        d[(2, 2)] = -1.0;
-    }
-    let r = vt.transpose() * d * u.transpose();
-    let rot = nalgebra::UnitQuaternion::from_matrix(&r);
+    let sv = svd.singular_values;
+    let mut order = [0, 1, 2];
+    order.sort_by(|&a, &b| sv[b].total_cmp(&sv[a]));
+    let rot = if sv[order[0]] <= 1e-12 * (spread_a * spread_b).sqrt() {
+        nalgebra::UnitQuaternion::identity()
+    } else if sv[order[1]] <= 1e-9 * sv[order[0]] {
+        // H = σ₁ u₁ v₁ᵀ: u₁ and v₁ are the two lines' directions, signed alike.
+        let u1 = u.column(order[0]).into_owned();
+        let v1 = vt.row(order[0]).transpose();
+        nalgebra::UnitQuaternion::rotation_between(&u1, &v1)?
+    } else {
+        let mut d = nalgebra::Matrix3::<f64>::identity();
+        if (vt.transpose() * u.transpose()).determinant() < 0.0 {
+            d[(2, 2)] = -1.0;
+        }
+        let r = vt.transpose() * d * u.transpose();
+        // `r` is orthonormal (to rounding) already; `UnitQuaternion::from_matrix` would iterate
+        // to extract a rotation and, started from the identity, never returns for some inputs.
+        nalgebra::UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(r))
+    };
     let t = cb - rot * ca;
     Some(nalgebra::Isometry3::from_parts(nalgebra::Translation3::from(t), rot))
+}
+
+/// The world box of the class box `lo..hi` (in the reference instance's place) carried to an
+/// instance by `instance_from_reference`.
+fn carried_box(instance_from_reference: &nalgebra::Isometry3<f64>, lo: Point3, hi: Point3) -> Aabb {
+    // Through `Aabb::mapped`, not a grow-per-corner loop: see its note on a miscompilation.
+    Aabb { min: lo, max: hi }.mapped(|c| {
+        let w = instance_from_reference * nalgebra::Point3::new(c[0], c[1], c[2]);
+        [w.x, w.y, w.z]
+    })
 }
 
 /// The symmetric `n × n` matrix of `d(a, b)` (row-major), computed for a < b in parallel.
@@ -762,9 +794,12 @@ fn assemble(
                 for d in 0..3 {
                     let v = &mut pooled[d];
                     v.sort_by(f64::total_cmp);
-                    let q = |x: f64| v[((x * (v.len() - 1) as f64).round() as usize).min(v.len() - 1)];
-                    lo[d] = q(o.box_trim) - pad;
-                    hi[d] = q(1.0 - o.box_trim) + pad;
+                    // Symmetric ranks (k-th smallest and k-th largest), so that a motion that
+                    // turns an axis around picks the same two features.
+                    let last = v.len() - 1;
+                    let k = ((o.box_trim.clamp(0.0, 0.5) * last as f64).round() as usize).min(last / 2);
+                    lo[d] = v[k] - pad;
+                    hi[d] = v[last - k] + pad;
                 }
                 Some((lo, hi))
             }
@@ -780,24 +815,7 @@ fn assemble(
             let rot = [[a[0][0], a[1][0], a[2][0]], [a[0][1], a[1][1], a[2][1]], [a[0][2], a[1][2], a[2][2]]];
             let frame = mat4_from_rt(rot, f.position);
             let aabb = match (union_box, t) {
-                (Some((lo, hi)), Some(t)) => {
-                    let inv = t.inverse();
-                    let mut b: Option<Aabb> = None;
-                    for k in 0..8 {
-                        let c = [
-                            if k & 1 == 0 { lo[0] } else { hi[0] },
-                            if k & 2 == 0 { lo[1] } else { hi[1] },
-                            if k & 4 == 0 { lo[2] } else { hi[2] },
-                        ];
-                        let w = inv * nalgebra::Point3::new(c[0], c[1], c[2]);
-                        let w = [w.x, w.y, w.z];
-                        match &mut b {
-                            Some(b) => b.grow(w),
-                            None => b = Some(Aabb { min: w, max: w }),
-                        }
-                    }
-                    b.unwrap_or(Aabb { min: f.position, max: f.position })
-                }
+                (Some((lo, hi)), Some(t)) => carried_box(&t.inverse(), lo, hi),
                 _ => {
                     let c = [(r.lo[0] + r.hi[0]) / 2.0, (r.lo[1] + r.hi[1]) / 2.0, (r.lo[2] + r.hi[2]) / 2.0];
                     Aabb {
@@ -831,6 +849,79 @@ fn assemble(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn kabsch_recovers_a_motion_and_handles_collinear_and_coincident_points() {
+        let axis = nalgebra::Unit::new_normalize(nalgebra::Vector3::new(0.3, -0.5, 0.8));
+        let m = nalgebra::Isometry3::from_parts(
+            nalgebra::Translation3::new(1.0, -2.0, 0.5),
+            nalgebra::UnitQuaternion::from_axis_angle(&axis, 2.0),
+        );
+        let apply = |m: &nalgebra::Isometry3<f64>, p: Point3| {
+            let q = m * nalgebra::Point3::new(p[0], p[1], p[2]);
+            [q.x, q.y, q.z]
+        };
+        let from = [[0.0, 0.0, 0.0], [1.0, 0.2, 0.0], [0.3, 1.5, -0.4], [-0.7, 0.1, 0.9]];
+        let to: Vec<Point3> = from.iter().map(|&p| apply(&m, p)).collect();
+        let k = kabsch(&from, &to).expect("a motion");
+        assert!((k.to_homogeneous() - m.to_homogeneous()).abs().max() < 1e-12);
+        // Collinear: the result maps the line onto the line and does not depend on rounding:
+        // moving both sets by a motion `g` conjugates it.
+        let line = [[0.0, 0.0, 0.0], [1.0, 1.0, 0.0], [2.5, 2.5, 0.0], [4.0, 4.0, 0.0]];
+        let to: Vec<Point3> = line.iter().map(|&p| apply(&m, p)).collect();
+        let k = kabsch(&line, &to).expect("a motion");
+        for (p, q) in line.iter().zip(&to) {
+            let r = apply(&k, *p);
+            assert!((0..3).all(|d| (r[d] - q[d]).abs() < 1e-12), "{r:?} vs {q:?}");
+        }
+        let g = nalgebra::Isometry3::from_parts(
+            nalgebra::Translation3::new(8.0, -4.0, 30.0),
+            nalgebra::UnitQuaternion::from_axis_angle(&nalgebra::Vector3::x_axis(), 1.1),
+        );
+        let gl: Vec<Point3> = line.iter().map(|&p| apply(&g, p)).collect();
+        let gt: Vec<Point3> = to.iter().map(|&p| apply(&g, p)).collect();
+        let kg = kabsch(&gl, &gt).expect("a motion");
+        let conj = g * k * g.inverse();
+        assert!((kg.to_homogeneous() - conj.to_homogeneous()).abs().max() < 1e-9);
+        // Coincident points: a translation.
+        let k = kabsch(&[[1.0, 2.0, 3.0]; 3], &[[0.0, 0.0, 1.0]; 3]).expect("a translation");
+        assert!(k.rotation.angle() < 1e-12);
+        assert!((k.translation.vector - nalgebra::Vector3::new(-1.0, -2.0, -2.0)).norm() < 1e-12);
+    }
+
+    #[test]
+    fn a_carried_box_holds_every_carried_corner() {
+        // A 4° rotation and a shift between two window instances of a generated facade, as
+        // Kabsch gave them; rustc 1.95.0 at opt-level 3 (`cargo test --release`) dropped the
+        // last corner from the z bound of the obvious grow-per-corner loop (0.244, not 0.290).
+        let r = nalgebra::Matrix3::new(
+            0.9974614985953107,
+            -0.0014641553978736665,
+            -0.07119280208678487,
+            -0.0008696721386265516,
+            0.9994635323864849,
+            -0.03273974801218342,
+            0.07120254553292697,
+            0.03271855251231094,
+            0.9969251194704298,
+        )
+        .transpose();
+        let t = nalgebra::Isometry3::from_parts(
+            nalgebra::Translation3::new(6.033801142786978, -6.3810382191022414, 0.7497097852416694),
+            nalgebra::UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(r)),
+        );
+        let lo = [9.79664719562898, 4.639849054650811, -0.2916363947198993];
+        let hi = [11.202675125995079, 6.058377533497345, 0.26354371024347706];
+        let inv = std::hint::black_box(t.inverse());
+        let b = carried_box(&inv, std::hint::black_box(lo), std::hint::black_box(hi));
+        for c in (Aabb { min: lo, max: hi }).corners() {
+            let w = inv * nalgebra::Point3::new(c[0], c[1], c[2]);
+            for d in 0..3 {
+                assert!(b.min[d] <= w[d] && w[d] <= b.max[d], "corner {c:?} → {w:?} outside {b:?}");
+            }
+        }
+        assert!((b.max[2] - 0.2903654902671897).abs() < 1e-9, "{b:?}");
+    }
 
     #[test]
     fn mds_recovers_planar_distances() {

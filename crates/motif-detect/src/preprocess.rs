@@ -29,11 +29,13 @@ pub enum Epsilon {
     Relative(f64),
     /// ε in the input's units (metres for the generated scenes).
     Absolute(f64),
-    /// The larger of the thesis's single-shape value (0.0005 × diagonal) and the input's own
-    /// median nearest-neighbour spacing. Resampling can only remove points, so an ε finer than the
+    /// The larger of the thesis's single-shape value (0.0005 × diagonal) and 1.02 × the input's
+    /// own median nearest-neighbour spacing. Resampling can only remove points, so an ε finer than the
     /// data would leave the 4ε curvature balls with a handful of points and make every later
     /// length (HOC cells of 8ε, the 64ε pair radius) shorter than the data can support. The
-    /// default; the chosen value is reported.
+    /// default; the chosen value is reported. The 2% keep ε off the distance between two input
+    /// points: a pair exactly ε apart is kept or thinned by rounding, which a rigid motion of the
+    /// input changes (on a generated facade, one such pair renumbered every later point).
     Auto,
 }
 
@@ -265,11 +267,11 @@ pub fn preprocess(cloud: &PointCloud, o: &PreprocessOptions, force: bool) -> Res
         Epsilon::Absolute(e) => e,
         Epsilon::Auto => {
             let thesis = THESIS_EPSILON_SHAPES * diagonal;
-            let spacing = median_spacing(&cloud.positions, &tree);
+            let spacing = 1.02 * median_spacing(&cloud.positions, &tree);
             if spacing > thesis {
                 warnings.push(format!(
-                    "ε raised from the thesis's 0.0005 × diagonal ({thesis:.4}) to the input's median \
-                     spacing {spacing:.4}: the data is sparser than the thesis's resolution"
+                    "ε raised from the thesis's 0.0005 × diagonal ({thesis:.4}) to 1.02 × the input's \
+                     median spacing, {spacing:.4}: the data is sparser than the thesis's resolution"
                 ));
                 spacing
             } else {
@@ -348,7 +350,7 @@ pub fn preprocess(cloud: &PointCloud, o: &PreprocessOptions, force: bool) -> Res
 }
 
 /// Local maxima of |κ₁| over the NMS radius whose dimensionless curvature passes the threshold,
-/// strongest first (ties by index), each with its frame (x = normal, y = t₁ orthogonalised).
+/// strongest first (near-ties by index), each with its frame (x = normal, y = t₁ orthogonalised).
 fn select_features(
     points: &[Point3],
     normals: &[Point3],
@@ -360,7 +362,12 @@ fn select_features(
     let r_fit = o.curvature_radius * epsilon;
     let threshold = o.kappa_threshold / r_fit.max(f64::MIN_POSITIVE);
     let mut candidates: Vec<usize> = (0..points.len()).filter(|&i| kappa[i] > threshold).collect();
-    candidates.sort_by(|&a, &b| kappa[b].total_cmp(&kappa[a]).then(a.cmp(&b)));
+    // Strongest first, curvatures within 1e-7 of the threshold's scale counting as ties (broken
+    // by index): a rigid motion of the input changes κ₁ in its last bits, and along a straight
+    // crease of a clean model many neighbours tie, so an exact comparison picked other maxima
+    // after a motion. Indices of the resampled points do not depend on the motion.
+    let key = |i: usize| (kappa[i] / threshold * 1e7).round() as i64;
+    candidates.sort_by(|&a, &b| key(b).cmp(&key(a)).then(a.cmp(&b)));
     let r_nms = o.nms_radius * epsilon;
     // A candidate is a feature when no stronger point lies within the NMS radius. Stronger
     // points are all earlier in `candidates`, so hash every candidate and compare values.

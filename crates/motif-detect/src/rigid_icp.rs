@@ -395,20 +395,7 @@ fn backward_score(
 
 /// The axis-aligned box of a box's corners moved by `m`.
 fn moved_box(min: &Point3, max: &Point3, m: &Mat4) -> Aabb {
-    let mut b: Option<Aabb> = None;
-    for i in 0..8 {
-        let c = [
-            if i & 1 == 0 { min[0] } else { max[0] },
-            if i & 2 == 0 { min[1] } else { max[1] },
-            if i & 4 == 0 { min[2] } else { max[2] },
-        ];
-        let q = transform_point(m, c);
-        match &mut b {
-            Some(b) => b.grow(q),
-            None => b = Some(Aabb { min: q, max: q }),
-        }
-    }
-    b.unwrap_or(Aabb { min: *min, max: *max })
+    Aabb { min: *min, max: *max }.mapped(|c| transform_point(m, c))
 }
 
 /// Yaw (rotation about y) of a transform's rotation part, radians.
