@@ -122,12 +122,7 @@ impl Aabb {
     /// inlined): the last corner was dropped from one axis, and detection results changed with
     /// unrelated edits. Rust 1.97.1 fixes it; `motif_detect::instances` tests it.
     pub fn mapped(&self, f: impl Fn(Point3) -> Point3) -> Aabb {
-        let c = self.corners().map(f);
-        let mut b = Aabb { min: c[0], max: c[0] };
-        for p in &c[1..] {
-            b.grow(*p);
-        }
-        b
+        Aabb::from_points(&self.corners().map(f)).unwrap_or(*self)
     }
 
     /// Edge lengths.
