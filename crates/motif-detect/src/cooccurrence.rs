@@ -61,9 +61,10 @@ pub struct EmOptions {
     /// pair_radius`, the share a random offset catches when the members lie along a line (see the
     /// module documentation); 0 keeps every best hypothesis, as the thesis does. Measured with
     /// `motif bench detect --no-icp --scenes 6` (seeds 1–6), F of EM + SC easy / medium / hard:
-    /// facade 0.932 / 0.822 / 0.451 with 0, 0.925 / 0.865 / 0.487 with 0.125; street 0.721 /
-    /// 0.658 / 0.403 with 0, 0.721 / 0.672 / 0.482 with 0.125. On facade seeds 1–3, medium / hard
-    /// F is 0.794 / 0.449 with 0, 0.907 / 0.481 with 0.125, 0.897 / 0.447 with 0.1875 and 0.826 /
+    /// facade 0.922 / 0.812 / 0.468 with 0, 0.914 / 0.851 / 0.478 with 0.125; street 0.725 /
+    /// 0.653 / 0.393 with 0, 0.698 / 0.666 / 0.501 with 0.125. Swept on facade seeds 1–3 before
+    /// the rigid-motion fixes of `instances::kabsch` and `Aabb::mapped`, medium / hard F was
+    /// 0.794 / 0.449 with 0, 0.907 / 0.481 with 0.125, 0.897 / 0.447 with 0.1875 and 0.826 /
     /// 0.293 with 0.25 (0.0625: 0.838 / 0.444): past 1/8 precision rises and recall falls. The SC
     /// baseline (no EM) keeps no pair on hard scenes: its words are too impure for any offset to
     /// stand out.
