@@ -638,6 +638,22 @@ fn detect_names_a_nan_point_and_writes_nothing() {
 }
 
 #[test]
+fn detect_rejects_an_option_out_of_range_by_its_flag_before_reading() {
+    let dir = tmp();
+    // The input does not exist: the option must be rejected before any reading.
+    for (flag, value) in [("--peak-share", "1.5"), ("--sigma", "0"), ("--bandwidth", "nan"), ("--words", "1")]
+    {
+        let o = motif(&["detect", "missing.ply", "-o", "out.json", flag, value], dir.path());
+        assert_eq!(o.status.code(), Some(2), "{flag}: {}", stderr(&o));
+        assert!(stderr(&o).contains(flag) && !stderr(&o).contains("missing.ply"), "{flag}: {}", stderr(&o));
+        assert!(!dir.path().join("out.json").exists());
+    }
+    let o = motif(&["bench", "detect", "--peak-share=-0.1"], dir.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--peak-share"), "{}", stderr(&o));
+}
+
+#[test]
 fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
     let dir = tmp();
     let o = motif(

@@ -92,6 +92,58 @@ impl Default for DetectOptions {
     }
 }
 
+impl DetectOptions {
+    /// Checks the options of the later stages ([`preprocess`] checks its own, and ε once it knows
+    /// the data): lengths, widths and bandwidths positive and finite, shares and scores within
+    /// [0, 1], at least two words. [`detect`] calls it first; front ends may call it before
+    /// reading any input.
+    ///
+    /// # Errors
+    /// [`DetectError::InvalidOption`] naming the first field out of range (`em.peak_share`, ...).
+    pub fn validate(&self) -> Result<()> {
+        let bad = |name: &'static str, message: String| Err(DetectError::InvalidOption { name, message });
+        for (name, v) in [
+            ("hoc.cell", self.hoc.cell),
+            ("dictionary.sigma", self.dictionary.sigma),
+            ("dictionary.tolerance", self.dictionary.tolerance),
+            ("em.match_radius", self.em.match_radius),
+            ("em.pair_radius", self.em.pair_radius),
+            ("em.sigma_s", self.em.sigma_s),
+            ("instances.bandwidth", self.instances.bandwidth),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(name, format!("must be positive and finite, got {v}"));
+            }
+        }
+        for (name, v) in [
+            ("dictionary.min_score", self.dictionary.min_score),
+            ("em.peak_share", self.em.peak_share),
+            ("em.min_confidence", self.em.min_confidence),
+            ("instances.min_links", self.instances.min_links),
+            ("instances.merge_overlap", self.instances.merge_overlap),
+        ] {
+            if !(0.0..=1.0).contains(&v) {
+                return bad(name, format!("must be between 0 and 1, got {v}"));
+            }
+        }
+        if !(0.0..0.5).contains(&self.instances.box_trim) {
+            let v = self.instances.box_trim;
+            return bad("instances.box_trim", format!("must be at least 0 and below 0.5, got {v}"));
+        }
+        if !(self.mdl_min_saving.is_finite() && self.mdl_min_saving >= 0.0) {
+            let v = self.mdl_min_saving;
+            return bad("mdl_min_saving", format!("must be finite and ≥ 0, got {v}"));
+        }
+        if self.dictionary.words < 2 {
+            return bad("dictionary.words", format!("must be at least 2, got {}", self.dictionary.words));
+        }
+        if self.instances.embedding_dims == 0 {
+            return bad("instances.embedding_dims", "must be at least 1, got 0".into());
+        }
+        Ok(())
+    }
+}
+
 /// One MDL round.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct RoundReport {
@@ -220,6 +272,7 @@ pub fn detect_mesh(
     o: &DetectOptions,
     progress: &dyn Progress,
 ) -> Result<Detection> {
+    o.validate()?;
     let s = sample_surface(mesh, o.mesh_samples.max(100), o.seed)?;
     let mut cloud = PointCloud::from_positions(s.points);
     cloud.normals = Some(s.normals);
@@ -237,6 +290,7 @@ pub fn detect(
     progress: &dyn Progress,
     force: bool,
 ) -> Result<Detection> {
+    o.validate()?;
     let t0 = Instant::now();
     let mut report = DetectReport { input_points: cloud.len(), ..Default::default() };
     progress.start("resample, normals, curvature, features", 0);

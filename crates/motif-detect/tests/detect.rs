@@ -157,3 +157,22 @@ fn absurd_epsilon_is_refused_unless_forced() {
     assert!(err.to_string().contains("--force"), "{err}");
     assert!(detect(&cloud, "x", &o, &NoProgress, true).is_ok());
 }
+
+#[test]
+fn options_out_of_range_are_refused_by_name() {
+    let (cloud, _) = facade(2_000);
+    let cases: [(&str, fn(&mut DetectOptions)); 5] = [
+        ("em.peak_share", |o| o.em.peak_share = 1.5),
+        ("em.sigma_s", |o| o.em.sigma_s = 0.0),
+        ("dictionary.sigma", |o| o.dictionary.sigma = f64::NAN),
+        ("instances.box_trim", |o| o.instances.box_trim = 0.5),
+        ("dictionary.words", |o| o.dictionary.words = 1),
+    ];
+    for (name, break_it) in cases {
+        let mut o = options();
+        assert!(o.validate().is_ok());
+        break_it(&mut o);
+        let err = detect(&cloud, "x", &o, &NoProgress, false).expect_err(name);
+        assert!(err.to_string().contains(name), "{name}: {err}");
+    }
+}

@@ -52,9 +52,9 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     if a.scenes == 0 {
         return Err(bad_input("--scenes must be at least 1"));
     }
-    if !(0.0..=1.0).contains(&a.peak_share) {
-        return Err(bad_input(format!("--peak-share must be between 0 and 1, got {}", a.peak_share)));
-    }
+    let mut checked = DetectOptions::default();
+    checked.em.peak_share = a.peak_share;
+    super::detect::validate_options(&checked)?;
     if let Some(p) = &a.plot {
         check_output(p, &[], g.force)?;
     }

@@ -4,7 +4,7 @@ use motif_core::io::Model;
 use motif_core::{AttributeData, PointCloud};
 use motif_detect::pipeline::Method;
 use motif_detect::preprocess::Epsilon;
-use motif_detect::{DetectOptions, Detection};
+use motif_detect::{DetectError, DetectOptions, Detection};
 
 use crate::cli::{DetectArgs, GlobalArgs};
 use crate::output::{check_output, maybe_json, write_json};
@@ -23,6 +23,29 @@ const PALETTE: [[u8; 3]; 10] = [
     [23, 190, 207],
     [127, 127, 127],
 ];
+
+/// Checks `o` before any input is read ([`DetectOptions::validate`]); a field out of range is
+/// named by its command-line flag.
+pub fn validate_options(o: &DetectOptions) -> anyhow::Result<()> {
+    match o.validate() {
+        Ok(()) => Ok(()),
+        Err(DetectError::InvalidOption { name, message }) => {
+            let flag = match name {
+                "dictionary.words" => "--words",
+                "dictionary.sigma" => "--sigma",
+                "dictionary.tolerance" => "--tolerance",
+                "dictionary.min_score" => "--min-score",
+                "em.sigma_s" => "--sigma-s",
+                "em.peak_share" => "--peak-share",
+                "instances.bandwidth" => "--bandwidth",
+                "mdl_min_saving" => "--mdl-min-saving",
+                other => other,
+            };
+            Err(crate::output::bad_input(format!("{flag} {message}")))
+        }
+        Err(e) => Err(e.into()),
+    }
+}
 
 /// The options the command line asks for.
 pub fn options(a: &DetectArgs, g: &GlobalArgs) -> DetectOptions {
@@ -64,26 +87,8 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             check_output(j, &inputs, g.force)?;
         }
     }
-    for (name, v) in [
-        ("--sigma", a.sigma),
-        ("--sigma-s", a.sigma_s),
-        ("--bandwidth", a.bandwidth),
-        ("--tolerance", a.tolerance),
-    ] {
-        if !(v.is_finite() && v > 0.0) {
-            return Err(crate::output::bad_input(format!("{name} must be positive, got {v}")));
-        }
-    }
-    if !(0.0..=1.0).contains(&a.peak_share) {
-        return Err(crate::output::bad_input(format!(
-            "--peak-share must be between 0 and 1, got {}",
-            a.peak_share
-        )));
-    }
-    if a.words < 2 {
-        return Err(crate::output::bad_input(format!("--words must be at least 2, got {}", a.words)));
-    }
     let o = options(&a, g);
+    validate_options(&o)?;
     let bar = Bar::new(g.quiet);
     let model = bar.spin("reading", || super::read_model(&a.input))?;
     let scene = a.input.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();

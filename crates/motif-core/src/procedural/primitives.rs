@@ -288,17 +288,11 @@ impl Assembly {
 
     /// The box around the given parts.
     pub fn aabb_of(&self, parts: &[usize]) -> Aabb {
-        let mut b: Option<Aabb> = None;
-        for &p in parts {
-            for v in self.parts[p].vertices.clone() {
-                let q = self.mesh.positions[v];
-                match &mut b {
-                    Some(b) => b.grow(q),
-                    None => b = Some(Aabb { min: q, max: q }),
-                }
-            }
-        }
-        b.unwrap_or(Aabb { min: [0.0; 3], max: [0.0; 3] })
+        let points: Vec<_> = parts
+            .iter()
+            .flat_map(|&p| self.parts[p].vertices.clone().map(|v| self.mesh.positions[v]))
+            .collect();
+        Aabb::from_points(&points).unwrap_or(Aabb { min: [0.0; 3], max: [0.0; 3] })
     }
 
     /// The triangles of the given parts, ascending.

@@ -216,19 +216,12 @@ pub fn windmill(o: &WindmillOptions) -> Result<Example> {
         let blade_mirror = reflection(normal, center);
         // The sail's box without its root face (which lies on the hub).
         let cut = apothem * (1.0 + 1e-6);
-        let mut b: Option<Aabb> = None;
-        for &p in parts {
-            for v in asm.parts[p].vertices.clone() {
-                let q = asm.mesh.positions[v];
-                let rel = [q[0] - center[0], q[1] - center[1], 0.0];
-                if rel[0] * dir[0] + rel[1] * dir[1] > cut {
-                    match &mut b {
-                        Some(b) => b.grow(q),
-                        None => b = Some(Aabb { min: q, max: q }),
-                    }
-                }
-            }
-        }
+        let sail: Vec<_> = parts
+            .iter()
+            .flat_map(|&p| asm.parts[p].vertices.clone().map(|v| asm.mesh.positions[v]))
+            .filter(|q| (q[0] - center[0]) * dir[0] + (q[1] - center[1]) * dir[1] > cut)
+            .collect();
+        let b = Aabb::from_points(&sail);
         symmetries.push(ann.group(&format!("blade {k}"), Some(parts), b, vec![blade_mirror]));
     }
     let structure = Structure {

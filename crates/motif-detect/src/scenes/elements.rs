@@ -46,19 +46,9 @@ pub(crate) struct Template {
 impl Template {
     /// The box around all parts.
     pub fn bounds(&self) -> Aabb {
-        let mut b: Option<Aabb> = None;
-        for p in &self.parts {
-            if let Some(pb) = p.mesh.aabb() {
-                match &mut b {
-                    Some(b) => {
-                        b.grow(pb.min);
-                        b.grow(pb.max);
-                    }
-                    None => b = Some(pb),
-                }
-            }
-        }
-        b.unwrap_or(Aabb { min: [0.0; 3], max: [0.0; 3] })
+        let corners: Vec<_> =
+            self.parts.iter().filter_map(|p| p.mesh.aabb()).flat_map(|b| [b.min, b.max]).collect();
+        Aabb::from_points(&corners).unwrap_or(Aabb { min: [0.0; 3], max: [0.0; 3] })
     }
 }
 
