@@ -52,9 +52,14 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     if a.scenes == 0 {
         return Err(bad_input("--scenes must be at least 1"));
     }
-    let mut checked = DetectOptions::default();
-    checked.em.peak_share = a.peak_share;
-    super::detect::validate_options(&checked)?;
+    let options = |method, seed| {
+        let mut o = DetectOptions { method, seed, ..Default::default() };
+        o.preprocess.epsilon = Epsilon::Relative(a.epsilon);
+        o.em.min_support = a.min_support;
+        o.em.peak_share = a.peak_share;
+        o
+    };
+    super::detect::validate_options(&options(Method::EmSc, g.seed))?;
     if let Some(p) = &a.plot {
         check_output(p, &[], g.force)?;
     }
@@ -74,10 +79,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             let scene = bar.spin(&format!("{dname} scene {}", k + 1), || generate_scene(kind, &so))?;
             let gt = scene.ground_truth.clone();
             for (m, method) in [(0, Method::EmSc), (1, Method::Sc)] {
-                let mut o = DetectOptions { method, seed, ..Default::default() };
-                o.preprocess.epsilon = Epsilon::Relative(a.epsilon);
-                o.em.min_support = a.min_support;
-                o.em.peak_share = a.peak_share;
+                let o = options(method, seed);
                 let t = Instant::now();
                 let d = motif_detect::detect(&scene.cloud, "scene", &o, &bar, false)?;
                 let s = t.elapsed().as_secs_f64();
