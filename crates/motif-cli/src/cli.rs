@@ -558,6 +558,9 @@ pub struct BenchDetectArgs {
     /// Skip the rigid-ICP baseline (the slowest column).
     #[arg(long)]
     pub no_icp: bool,
+    /// Detect with instance extents and regrouping by size (see `motif detect --regroup`).
+    #[arg(long)]
+    pub regroup: bool,
     /// Mean PR and stress curves of EM + SC per difficulty (PNG).
     #[arg(long, value_name = "PNG")]
     pub plot: Option<PathBuf>,
@@ -767,6 +770,12 @@ pub struct DetectArgs {
     /// Points sampled on a mesh input.
     #[arg(long, default_value_t = 300_000)]
     pub mesh_samples: usize,
+    /// After the co-occurrence stages, grow instance boxes to their segment (off the wall and
+    /// ground planes) and split and merge classes by size (motif_detect::extent; not in the
+    /// thesis). Helps on scans whose blocks stand apart and vary strongly; hurts where
+    /// ornaments join blocks into one segment.
+    #[arg(long)]
+    pub regroup: bool,
     #[command(flatten)]
     pub json: JsonArg,
 }

@@ -25,7 +25,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::grid::SpatialHash;
-use crate::instances::{Class, InstanceOptions, crease_samples, kabsch, surface_hit_fraction};
+use crate::instances::{Class, InstanceOptions, crease_samples, kabsch, overlaps_any, surface_hit_fraction};
 
 /// Whether classes are merged after the MDL rounds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -173,13 +173,7 @@ pub fn merge_classes(
             }
             let Some(other) = slots[b].take() else { continue };
             for inst in other.instances {
-                let overlaps = c.instances.iter().any(|q| {
-                    inst.aabb.intersection(&q.aabb).is_some_and(|x| {
-                        x.volume()
-                            > o.merge_overlap * inst.aabb.volume().min(q.aabb.volume()).max(f64::MIN_POSITIVE)
-                    })
-                });
-                if !overlaps {
+                if !overlaps_any(&inst, &c.instances, o.merge_overlap) {
                     c.instances.push(inst);
                 }
             }

@@ -831,12 +831,7 @@ fn assemble(
     instances.sort_by(|a, b| b.features.len().cmp(&a.features.len()).then(a.centre.cmp(&b.centre)));
     let mut kept: Vec<Instance> = Vec::new();
     for inst in instances {
-        let overlaps = kept.iter().any(|q| {
-            inst.aabb.intersection(&q.aabb).is_some_and(|x| {
-                x.volume() > o.merge_overlap * inst.aabb.volume().min(q.aabb.volume()).max(f64::MIN_POSITIVE)
-            })
-        });
-        if !overlaps {
+        if !overlaps_any(&inst, &kept, o.merge_overlap) {
             kept.push(inst);
         }
     }
@@ -844,6 +839,16 @@ fn assemble(
         return None;
     }
     Some(Class { words: words_of_class.to_vec(), centre_word, extent, instances: kept, cluster })
+}
+
+/// Whether `inst`'s box overlaps one of `others`' by more than `share` of the smaller box (the
+/// test of [`InstanceOptions::merge_overlap`]).
+pub(crate) fn overlaps_any(inst: &Instance, others: &[Instance], share: f64) -> bool {
+    others.iter().any(|q| {
+        inst.aabb.intersection(&q.aabb).is_some_and(|x| {
+            x.volume() > share * inst.aabb.volume().min(q.aabb.volume()).max(f64::MIN_POSITIVE)
+        })
+    })
 }
 
 #[cfg(test)]

@@ -11,6 +11,8 @@
 //!   read, written and validated;
 //! - [`class_merge`]: classes of one block found in different MDL rounds joined again (not in
 //!   the thesis);
+//! - [`extent`]: instance extents by segmentation and classes regrouped by size (not in the
+//!   thesis);
 //! - [`eval`]: the evaluation protocol of thesis 5.5.2 (box matching, precision, recall, F, the
 //!   PR curve by class removal and the stress curve over the overlap threshold τ);
 //! - [`plot`]: the PR and stress curves as a PNG (like the thesis's Fig. 5.9);
@@ -26,6 +28,7 @@ pub mod detection;
 pub mod dictionary;
 pub mod error;
 pub mod eval;
+pub mod extent;
 pub mod grid;
 pub mod hoc;
 pub mod instances;

@@ -17,6 +17,7 @@ use crate::cooccurrence::{EmOptions, EmReport, match_all, run_em};
 use crate::detection::{DetectedClass, DetectedInstance, DetectionResult};
 use crate::dictionary::{DictionaryOptions, build};
 use crate::error::{DetectError, Result};
+use crate::extent::{ExtentOptions, ExtentReport, Regroup, regroup};
 use crate::grid::SpatialHash;
 use crate::hoc::{HocOptions, compute};
 use crate::instances::{Class, ClusteringReport, InstanceOptions, detect_instances};
@@ -47,6 +48,9 @@ pub struct DetectOptions {
     pub em: EmOptions,
     /// Spectral clustering and the star model (5.3.3, 5.4).
     pub instances: InstanceOptions,
+    /// Instance extents by segmentation and classes regrouped by size (not in the thesis; see
+    /// [`crate::extent`]).
+    pub extent: ExtentOptions,
     /// EM + SC or the SC baseline.
     pub method: Method,
     /// Rounds of the MDL incremental scheme (5.4): each keeps the largest class and removes its
@@ -82,6 +86,7 @@ impl Default for DetectOptions {
             dictionary: DictionaryOptions::default(),
             em: EmOptions::default(),
             instances: InstanceOptions::default(),
+            extent: ExtentOptions::default(),
             method: Method::EmSc,
             mdl_rounds: 7,
             mdl_min_saving: 0.005,
@@ -110,6 +115,13 @@ impl DetectOptions {
             ("em.pair_radius", self.em.pair_radius),
             ("em.sigma_s", self.em.sigma_s),
             ("instances.bandwidth", self.instances.bandwidth),
+            ("extent.link_radius", self.extent.link_radius),
+            ("extent.plane_tolerance", self.extent.plane_tolerance),
+            ("extent.support_diagonal", self.extent.support_diagonal),
+            ("extent.max_growth", self.extent.max_growth),
+            ("extent.split_distance", self.extent.split_distance),
+            ("extent.merge_distance", self.extent.merge_distance),
+            ("extent.spread_floor", self.extent.spread_floor),
         ] {
             if !(v.is_finite() && v > 0.0) {
                 return bad(name, format!("must be positive and finite, got {v}"));
@@ -121,6 +133,7 @@ impl DetectOptions {
             ("em.min_confidence", self.em.min_confidence),
             ("instances.min_links", self.instances.min_links),
             ("instances.merge_overlap", self.instances.merge_overlap),
+            ("extent.normal_cos", self.extent.normal_cos),
         ] {
             if !(0.0..=1.0).contains(&v) {
                 return bad(name, format!("must be between 0 and 1, got {v}"));
@@ -198,6 +211,8 @@ pub struct DetectReport {
     pub instances_per_class: Vec<usize>,
     /// Classes joined after the MDL rounds ([`crate::class_merge`]).
     pub class_merges: usize,
+    /// Instance extents and classes regrouped by size ([`crate::extent`]).
+    pub extent: ExtentReport,
     /// Seconds per stage: preprocess, descriptors, dictionary, EM, instances, output.
     pub seconds: StageSeconds,
     /// Warnings, in words.
@@ -401,6 +416,13 @@ pub fn detect(
         let (merged, joins) = crate::class_merge::merge_classes(classes, &surface, pre.epsilon, &o.instances);
         classes = merged;
         report.class_merges = joins;
+        report.seconds.instances += t.elapsed().as_secs_f64();
+    }
+    if o.extent.regroup == Regroup::Extent {
+        let t = Instant::now();
+        let (regrouped, r) = regroup(classes, &pre, o.instances.merge_overlap, &o.extent);
+        classes = regrouped;
+        report.extent = r;
         report.seconds.instances += t.elapsed().as_secs_f64();
     }
 

@@ -5,6 +5,7 @@ use motif_core::geometry::{Mat4, mat4_from_rt, rotation_about_axis, transform_po
 use motif_core::progress::NoProgress;
 use motif_core::sampling::sample_surface;
 use motif_core::{Point3, PointCloud};
+use motif_detect::extent::Regroup;
 use motif_detect::pipeline::Method;
 use motif_detect::preprocess::Epsilon;
 use motif_detect::{DetectOptions, DetectionResult, EvalOptions, detect, evaluate};
@@ -81,32 +82,41 @@ fn detection_is_invariant_to_a_rigid_motion() {
     let rz = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]];
     let rx = [[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]];
     let m = motif_core::geometry::mat4_mul(&mat4_from_rt(rx, [8.0, -4.0, 30.0]), &mat4_from_rt(rz, [0.0; 3]));
-    let o = options();
-    let a = detect(&cloud, "a", &o, &NoProgress, false).expect("detection");
-    let b = detect(&moved(&cloud, &m), "b", &o, &NoProgress, false).expect("detection of the moved copy");
-    assert!((a.report.epsilon - b.report.epsilon).abs() < 1e-6 * a.report.epsilon);
-    assert_eq!(a.report.instances_per_class, b.report.instances_per_class);
-    let tol = 1e-9 * a.report.diagonal;
-    let moved_a = moved_truth(&a.result, &m);
-    for (ca, cb) in moved_a.classes.iter().zip(&b.result.classes) {
-        for (ia, ib) in ca.instances.iter().zip(&cb.instances) {
-            for k in 0..3 {
-                assert!(
-                    (ia.bbox_min[k] - ib.bbox_min[k]).abs() < tol
-                        && (ia.bbox_max[k] - ib.bbox_max[k]).abs() < tol,
-                    "moved box {:?}..{:?}, box of the moved copy {:?}..{:?}",
-                    ia.bbox_min,
-                    ia.bbox_max,
-                    ib.bbox_min,
-                    ib.bbox_max
-                );
-            }
-            assert_eq!(ia.points, ib.points, "instance points (input indices) differ");
+    // With and without the extent stage (motif_detect::extent), which segments the resampled
+    // surface and compares box sizes.
+    for regroup in [Regroup::None, Regroup::Extent] {
+        let mut o = options();
+        o.extent.regroup = regroup;
+        let a = detect(&cloud, "a", &o, &NoProgress, false).expect("detection");
+        let b = detect(&moved(&cloud, &m), "b", &o, &NoProgress, false).expect("detection of the moved copy");
+        assert!((a.report.epsilon - b.report.epsilon).abs() < 1e-6 * a.report.epsilon);
+        assert_eq!(a.report.instances_per_class, b.report.instances_per_class);
+        if regroup == Regroup::Extent {
+            assert!(a.report.extent.segments > 0 && a.report.extent.grown > 0, "{:?}", a.report.extent);
         }
+        let tol = 1e-9 * a.report.diagonal;
+        let moved_a = moved_truth(&a.result, &m);
+        for (ca, cb) in moved_a.classes.iter().zip(&b.result.classes) {
+            for (ia, ib) in ca.instances.iter().zip(&cb.instances) {
+                for k in 0..3 {
+                    assert!(
+                        (ia.bbox_min[k] - ib.bbox_min[k]).abs() < tol
+                            && (ia.bbox_max[k] - ib.bbox_max[k]).abs() < tol,
+                        "moved box {:?}..{:?}, box of the moved copy {:?}..{:?}",
+                        ia.bbox_min,
+                        ia.bbox_max,
+                        ib.bbox_min,
+                        ib.bbox_max
+                    );
+                }
+                assert_eq!(ia.points, ib.points, "instance points (input indices) differ");
+            }
+        }
+        let fa = evaluate(&a.result, &gt, &EvalOptions::default()).expect("eval").f;
+        let fb = evaluate(&b.result, &moved_truth(&gt, &m), &EvalOptions::default()).expect("eval").f;
+        assert!(fa > 0.0 && (fa - fb).abs() < 1e-12, "F {fa:.3} before, {fb:.3} after the motion");
     }
-    let fa = evaluate(&a.result, &gt, &EvalOptions::default()).expect("eval").f;
-    let fb = evaluate(&b.result, &moved_truth(&gt, &m), &EvalOptions::default()).expect("eval").f;
-    assert!(fa > 0.0 && (fa - fb).abs() < 1e-12, "F {fa:.3} before, {fb:.3} after the motion");
+    let o = options();
     // A general rotation (not a quarter turn) changes the world-axis-aligned boxes themselves, so
     // only the outcome can be compared: classes are still found.
     let axis: Point3 = [0.3 / 1.0198, -0.5 / 1.0198, 0.8 / 1.0198];

@@ -57,6 +57,9 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         o.preprocess.epsilon = Epsilon::Relative(a.epsilon);
         o.em.min_support = a.min_support;
         o.em.peak_share = a.peak_share;
+        if a.regroup {
+            o.extent.regroup = motif_detect::extent::Regroup::Extent;
+        }
         o
     };
     super::detect::validate_options(&options(Method::EmSc, g.seed))?;
@@ -135,8 +138,15 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     }
     if !crate::output::json_on_stdout(&a.json.json) {
         println!(
-            "{} × {} scenes of {} points, ε = {} × diagonal, minimum support {}, peak share {}, τ = {}",
-            a.kind, a.scenes, a.points, a.epsilon, a.min_support, a.peak_share, eval.tau
+            "{} × {} scenes of {} points, ε = {} × diagonal, minimum support {}, peak share {}, regroup {}, τ = {}",
+            a.kind,
+            a.scenes,
+            a.points,
+            a.epsilon,
+            a.min_support,
+            a.peak_share,
+            if a.regroup { "by extent" } else { "off" },
+            eval.tau
         );
         println!("{:<8} {:<24} {:>6} {:>6} {:>6} {:>9}", "level", "method", "P", "R", "F", "median s");
         for r in &rows {
@@ -163,6 +173,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     maybe_json(
         &a.json.json,
         &serde_json::json!({ "rows": rows, "stages": stages, "epsilon": a.epsilon,
-            "min_support": a.min_support, "peak_share": a.peak_share, "points": a.points }),
+            "min_support": a.min_support, "peak_share": a.peak_share, "points": a.points,
+            "regroup": a.regroup }),
     )
 }
