@@ -186,11 +186,10 @@ pub fn segment(
     let r = o.link_radius * eps;
     let hash = SpatialHash::new(points, r);
     let dot = |a: Point3, b: Point3| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-    // 1. Planar regions in index order; a point belongs to the first region that takes it.
+    // 1. Planar regions; a point belongs to the first region that takes it.
     let mut region: Vec<u32> = vec![u32::MAX; n];
     let mut support = vec![false; n];
     let mut queue: Vec<u32> = Vec::new();
-    let mut members: Vec<u32> = Vec::new();
     let mut next = 0u32;
     let limit2 = (o.support_diagonal * eps).powi(2);
     // Flattest seeds first (Rabbani et al. 2006): a seed on a crease has a tilted normal, and its
@@ -218,15 +217,14 @@ pub fn segment(
         let mut sum2 = nalgebra::Matrix3::<f64>::zeros();
         let mut refit_at = 16usize;
         region[s] = next;
+        // Breadth first: `queue[..head]` are the members taken so far.
         queue.clear();
-        members.clear();
         queue.push(s as u32);
         let (mut lo, mut hi) = (ps, ps);
         let mut head = 0;
         while head < queue.len() {
             let i = queue[head];
             head += 1;
-            members.push(i);
             let p = points[i as usize];
             for k in 0..3 {
                 lo[k] = lo[k].min(p[k]);
@@ -235,9 +233,9 @@ pub fn segment(
             let d = nalgebra::Vector3::new(p[0] - ps[0], p[1] - ps[1], p[2] - ps[2]);
             sum += d;
             sum2 += d * d.transpose();
-            if members.len() == refit_at {
+            if head == refit_at {
                 refit_at *= 2;
-                let m = members.len() as f64;
+                let m = head as f64;
                 let mean = sum / m;
                 let cov = sum2 / m - mean * mean.transpose();
                 let eig = nalgebra::SymmetricEigen::new(cov);
@@ -270,7 +268,7 @@ pub fn segment(
         }
         let d2 = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>();
         if d2 > limit2 {
-            for &i in &members {
+            for &i in &queue {
                 support[i as usize] = true;
             }
         }
