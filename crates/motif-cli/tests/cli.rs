@@ -699,19 +699,29 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
     assert!(stdout(&o).contains("class") && stdout(&o).contains("instance"), "{}", stdout(&o));
     let o = motif(&["eval", "r.json", "s.gt.json"], dir.path());
     assert!(o.status.success(), "{}", stderr(&o));
-    // The extent stage runs when asked, and its options and figures are in the report (a
-    // coarser ε: at 0.0012 this sparse scan yields no class to regroup).
-    let o = motif(
-        &["detect", "s.ply", "-o", "r2.json", "--epsilon", "0.002", "--regroup", "--json", "rep2.json"],
-        dir.path(),
-    );
-    assert!(o.status.success(), "{}", stderr(&o));
-    let rep: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.path().join("rep2.json")).unwrap()).unwrap();
-    assert_eq!(rep["options"]["extent"]["regroup"], "extent", "{}", rep["options"]);
-    assert!(rep["report"]["extent"]["support_points"].as_u64().unwrap() > 0, "{}", rep["report"]["extent"]);
-    assert!(rep["report"]["extent"]["segments"].as_u64().unwrap() > 0);
-    assert!(rep["report"]["extent"]["grown"].as_u64().unwrap() > 0);
-    let o = motif(&["eval", "r2.json", "s.gt.json"], dir.path());
-    assert!(o.status.success(), "{}", stderr(&o));
+    // The extent stage runs by default, and its options and figures are in the report (a
+    // coarser ε: at 0.0012 this sparse scan yields no class to regroup); `--regroup none` turns
+    // it off.
+    for (mode, out) in [(None, "r2"), (Some("extent"), "r3"), (Some("none"), "r4")] {
+        let (res, rep) = (format!("{out}.json"), format!("{out}.rep.json"));
+        let mut args = vec!["detect", "s.ply", "-o", &res, "--epsilon", "0.002", "--json", &rep];
+        if let Some(m) = mode {
+            args.extend(["--regroup", m]);
+        }
+        let o = motif(&args, dir.path());
+        assert!(o.status.success(), "{}", stderr(&o));
+        let rep: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.path().join(&rep)).unwrap()).unwrap();
+        let on = mode != Some("none");
+        assert_eq!(rep["options"]["extent"]["regroup"], if on { "extent" } else { "none" });
+        let ext = &rep["report"]["extent"];
+        for key in ["support_points", "segments", "grown"] {
+            assert_eq!(ext[key].as_u64().unwrap() > 0, on, "{mode:?} {key}: {ext}");
+        }
+        let o = motif(&["eval", &res, "s.gt.json"], dir.path());
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let o = motif(&["detect", "s.ply", "-o", "r5.json", "--regroup", "sideways"], dir.path());
+    assert!(!o.status.success() && stderr(&o).contains("sideways"), "{}", stderr(&o));
+    assert!(!dir.path().join("r5.json").exists());
 }

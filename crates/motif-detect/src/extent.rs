@@ -20,11 +20,16 @@
 //!    first, as PCL's plane segmentation followed by Euclidean clustering), made deterministic
 //!    and free of a random global plane model so that it follows a rigid motion of the input.
 //! 2. **Segments.** The other resampled points are joined into connected components (pairs
-//!    within [`ExtentOptions::link_radius`], union–find).
+//!    within [`ExtentOptions::link_radius`], union–find). The radius is in units of the
+//!    resampled surface's measured spacing ([`spacing_scale`]), so that a mesh sampled at about
+//!    one point per ε still forms one wall instead of thousands of pieces.
 //! 3. **Extents.** Each instance's box grows to cover the segment holding most of the non-support
 //!    points inside it, unless that would multiply its volume by more than
 //!    [`ExtentOptions::max_growth`] (a segment that is a whole building or a row of touching cars
-//!    says nothing about the block).
+//!    says nothing about the block). Instances of one class whose grown boxes overlap (the
+//!    [`crate::instances::InstanceOptions::merge_overlap`] test) are one block found through
+//!    several constellations (a window's four corners): the best linked is kept. A class left
+//!    with one instance is dropped.
 //! 4. **Split.** A class of at least four instances is split by average-linkage clustering of
 //!    its instances' log box sizes (Chebyshev distance, cut at [`ExtentOptions::split_distance`]),
 //!    over the two axes other than the class's thinnest (the depth of a facade element, the
@@ -36,27 +41,46 @@
 //!    spread: under strong variation one style found as three classes is joined again, while on
 //!    scenes with mild variation two styles whose sizes differ by 15% stay apart.
 //!
-//! # Off by default
-//! [`Regroup::None`] is the default (`motif detect --regroup` turns the stage on). Segments
-//! measure a block only where blocks stand apart from each other once the large planes are
-//! removed. On the procedural facade (`motif example facade`, 60k samples), string courses and
-//! window surrounds join windows into one segment: boxes grow to several windows and F falls
-//! from 0.52 to 0.32. On the benchmark scenes, whose blocks stand apart, it helps (below).
+//! # On by default
+//! [`Regroup::Extent`] is the default (`motif detect --regroup none` gives the thesis's output).
+//! It is not in the thesis, but it raised F at every level of the benchmark scenes and on the
+//! procedural facade (below). Segments measure a block only where blocks stand apart once the
+//! large planes are removed; where ornaments join blocks into one segment (string courses along
+//! a row of windows), [`ExtentOptions::max_growth`] keeps the boxes from growing to the row.
 //!
 //! # Measured
-//! `motif bench detect --kind scene-facade|scene-street --scenes 6 --no-icp [--regroup]` (seeds
-//! 1–6, 300k points, ε = 0.0012 × diagonal), mean F without → with this stage:
+//! `motif bench detect --kind scene-facade|scene-street --scenes 6 --no-icp [--regroup none]`
+//! (seeds 1–6, 300k points, ε = 0.0012 × diagonal), mean F without → with this stage:
 //!
 //! | | easy | medium | hard |
 //! |---|---|---|---|
-//! | facade | 0.914 → 0.891 | 0.851 → 0.890 | 0.478 → 0.635 |
-//! | street | 0.698 → 0.714 | 0.666 → 0.696 | 0.501 → 0.513 |
+//! | facade | 0.914 → 0.933 | 0.851 → 0.906 | 0.478 → 0.656 |
+//! | street | 0.698 → 0.760 | 0.666 → 0.711 | 0.501 → 0.532 |
 //!
-//! The SC baseline (`--no-em`) goes through the same stage: facade easy 0.698 → 0.785, medium
-//! 0.567 → 0.621, street 0.582 → 0.594 and 0.391 → 0.421 (hard: no classes either way). The loss
-//! on easy facades: a window whose balcony stands in front of it is one segment with it, so
-//! those windows grow to window-and-balcony boxes and leave their style's class. Refusing growth
-//! into a segment that reaches another detected instance cost more than it saved (facade hard F
+//! On the procedural facade (`motif example facade`, then `motif detect` with its default 300k
+//! mesh samples) F goes from 0.414 to 0.452; on the same facade sampled with 60k random points
+//! (the test in `tests/detect.rs`) from 0.645 to 0.643.
+//!
+//! How the stage got there, each step measured on the same scenes (facade easy / medium / hard,
+//! street easy / medium / hard):
+//! - First version (link radius 2.5ε, growth up to 8×, no removal of repeated instances):
+//!   0.891 / 0.890 / 0.635, 0.714 / 0.696 / 0.513. On the procedural facade F fell from 0.414 to
+//!   0.319, and on its 60k-point sampling from 0.645 to 0.377: there the resampled wall had a
+//!   90th-percentile neighbour distance of 2.1ε, fell apart into 3,785 segments at 2.5ε and was
+//!   never support. The measured spacing ([`spacing_scale`]) fixed that (0.646) and left the
+//!   scenes within 0.003.
+//! - Growth up to 16×, 32×, 64× or unbounded: facade hard 0.644 / 0.648 / 0.648 / 0.648, street
+//!   medium 0.696 / 0.703 / – / 0.703, street hard 0.533 / 0.532 / 0.541 / 0.551: a car found by
+//!   its cabin grows about 14× to the whole car. 32 (about 3.2× per axis) is the default, bounded
+//!   so that a row of touching cars or a run of ornament does not become one block.
+//! - Removing instances repeated within a class then gave the table above. Removing them across
+//!   classes too (a larger class's instance wins) lowered the procedural facade to 0.404: the
+//!   second window class went, and the classes of unannotated repeated ornaments weighed more.
+//!
+//! The SC baseline (`--no-em`) goes through the same stage. The loss that easy facades showed
+//! with the first version (a window whose balcony stands in front of it is one segment with it)
+//! is outweighed by the removal of repeated instances. Refusing growth into a segment that
+//! reaches another detected instance cost more than it saved (first version: facade hard F
 //! 0.570 instead of 0.633, street medium 0.689 instead of 0.700).
 //!
 //! Variants measured with a prototype (seeds 1–3 at medium, 1–6 at hard; facade medium, facade
@@ -72,6 +96,7 @@
 
 use motif_core::Point3;
 use motif_core::geometry::Aabb;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::grid::SpatialHash;
@@ -82,10 +107,11 @@ use crate::preprocess::Preprocessed;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum Regroup {
-    /// Keep the boxes and classes of the co-occurrence stages (the thesis). The default.
-    #[default]
+    /// Keep the boxes and classes of the co-occurrence stages (the thesis).
     None,
-    /// Grow boxes to their segment, split and merge classes by size (module documentation).
+    /// Grow boxes to their segment, split and merge classes by size (module documentation). The
+    /// default.
+    #[default]
     Extent,
 }
 
@@ -93,12 +119,16 @@ pub enum Regroup {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct ExtentOptions {
-    /// Whether the stage runs. Default [`Regroup::None`]: see the module documentation for why it
-    /// is not on by default.
+    /// Whether the stage runs. Default [`Regroup::Extent`]: see the module documentation for the
+    /// figures with and without it.
     pub regroup: Regroup,
-    /// Neighbours for region growing and segments lie within this distance, in ε. 2.5: the
-    /// resampled surface has one point per ε, so a gap of two missing points still connects,
-    /// and no pair of a regular resampling sits exactly on the radius. Default 2.5.
+    /// Neighbours for region growing and segments lie within this distance, in units of the
+    /// resampled surface's spacing h. 2.5: a gap of two missing points still connects, and no
+    /// pair of a regular resampling sits exactly on the radius. h is ε when the input is denser
+    /// than ε, which [`spacing_scale`] detects; on sparser input (a mesh sampled at about one
+    /// point per ε, where the resampling cannot fill the gaps of random samples) h grows with
+    /// the measured spacing, since at 2.5ε such a surface falls apart into pieces smaller than
+    /// the support size. Default 2.5.
     pub link_radius: f64,
     /// A point joins a planar region when it lies within this distance of the seed's tangent
     /// plane, in ε. Default 1.5.
@@ -109,8 +139,9 @@ pub struct ExtentOptions {
     /// (twice the 64ε pair radius: a plane larger than any linked block).
     pub support_diagonal: f64,
     /// A box grows to its segment only when the grown box is at most this many times its
-    /// volume. 3 kept the procedural facade's windows apart (F 0.51 instead of 0.32) but lowered
-    /// hard benchmark facades (F 0.564 instead of 0.635, seeds 1–6). Default 8.
+    /// volume: about 3.2× per axis, enough for a car found by its cabin (about 14×), not for a
+    /// row of them. 8 lowered street hard F to 0.513 (from 0.532), 3 lowered hard facades
+    /// further (module documentation). Default 32.
     pub max_growth: f64,
     /// Split distance on log sizes (0.3: a 35% size ratio; 0.25 split off the instances of a
     /// window style whose lower part a balcony hid, on medium facades). Default 0.3.
@@ -125,12 +156,12 @@ pub struct ExtentOptions {
 impl Default for ExtentOptions {
     fn default() -> Self {
         ExtentOptions {
-            regroup: Regroup::None,
+            regroup: Regroup::Extent,
             link_radius: 2.5,
             plane_tolerance: 1.5,
             normal_cos: 0.9,
             support_diagonal: 128.0,
-            max_growth: 8.0,
+            max_growth: 32.0,
             split_distance: 0.3,
             merge_distance: 1.0,
             spread_floor: 0.03,
@@ -145,8 +176,12 @@ pub struct ExtentReport {
     pub support_points: usize,
     /// Segments of the other points.
     pub segments: usize,
+    /// The link radius used, in ε ([`ExtentOptions::link_radius`] times the spacing scale).
+    pub link_radius: f64,
     /// Instance boxes grown to their segment.
     pub grown: usize,
+    /// Instances dropped because their grown box repeats another of their class.
+    pub duplicates: usize,
     /// Classes added by splitting.
     pub splits: usize,
     /// Classes joined.
@@ -172,6 +207,43 @@ pub struct Segments {
     pub boxes: Vec<Aabb>,
     /// Points on support planes.
     pub support_points: usize,
+    /// The link radius used, in ε.
+    pub link_radius: f64,
+}
+
+/// The 90th percentile of the resampled points' nearest-neighbour distances on a dense input,
+/// in ε: 1.48–1.54 measured on benchmark scenes (300k points, ε = 0.0012 × diagonal), whose
+/// resampling is a Poisson-disc set of radius ε (median 1.15–1.18ε).
+const DENSE_NN_Q90: f64 = 1.5;
+
+/// The resampled surface's spacing in ε: the 90th percentile of nearest-neighbour distances
+/// over [`DENSE_NN_Q90`], at least 1. On a dense input this is 1 (up to 3% on the scenes
+/// measured); on the procedural facade sampled with 60k random points (ε raised to the input's
+/// median spacing) the percentile is 2.13ε, and the link radius becomes 3.55ε. A point without a
+/// neighbour within twice the nominal link radius counts as far; the percentile is taken over all
+/// points, so isolated outliers (under 10%) do not move it.
+pub fn spacing_scale(points: &[Point3], eps: f64, o: &ExtentOptions) -> f64 {
+    let n = points.len();
+    if n < 2 || eps.is_nan() || eps <= 0.0 {
+        return 1.0;
+    }
+    let reach = 2.0 * o.link_radius * eps;
+    let hash = SpatialHash::new(points, reach);
+    let mut nn: Vec<f64> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let mut best = f64::INFINITY;
+            hash.for_each_within(points[i], reach, |j, d2| {
+                if j != i {
+                    best = best.min(d2);
+                }
+            });
+            best
+        })
+        .collect();
+    let k = (n * 9) / 10;
+    let (_, q, _) = nn.select_nth_unstable_by(k, f64::total_cmp);
+    (q.sqrt() / eps / DENSE_NN_Q90).max(1.0)
 }
 
 /// Steps 1–2 of the module documentation.
@@ -183,7 +255,8 @@ pub fn segment(
     o: &ExtentOptions,
 ) -> Segments {
     let n = points.len();
-    let r = o.link_radius * eps;
+    let link = o.link_radius * spacing_scale(points, eps, o);
+    let r = link * eps;
     let hash = SpatialHash::new(points, r);
     let dot = |a: Point3, b: Point3| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
     // 1. Planar regions; a point belongs to the first region that takes it.
@@ -313,7 +386,7 @@ pub fn segment(
         }
     }
     let boxes = lo.into_iter().zip(hi).map(|(min, max)| Aabb { min, max }).collect();
-    Segments { of_point, boxes, support_points: support.iter().filter(|&&s| s).count() }
+    Segments { of_point, boxes, support_points: support.iter().filter(|&&s| s).count(), link_radius: link }
 }
 
 /// Step 3: grows `inst`'s box to its main segment; true when it grew.
@@ -472,6 +545,7 @@ pub fn regroup(
     let seg = segment(&pre.points, &pre.normals, &pre.kappa, eps, o);
     report.support_points = seg.support_points;
     report.segments = seg.boxes.len();
+    report.link_radius = seg.link_radius;
     let hash = SpatialHash::new(&pre.points, 8.0 * eps);
     let mut counts = Vec::new();
     for c in &mut classes {
@@ -481,6 +555,21 @@ pub fn regroup(
             }
         }
     }
+    // Instances of one class grown to the same block are one instance: with several
+    // constellations per block (a window's four corners) each grew to the whole window.
+    for c in &mut classes {
+        let mut kept: Vec<Instance> = Vec::with_capacity(c.instances.len());
+        for inst in c.instances.drain(..) {
+            if overlaps_any(&inst, &kept, merge_overlap) {
+                report.duplicates += 1;
+            } else {
+                kept.push(inst);
+            }
+        }
+        c.instances = kept;
+    }
+    // A class needs two instances to be a repetition.
+    classes.retain(|c| c.instances.len() >= 2);
     let (classes, splits, merges) = split_and_merge(classes, merge_overlap, o);
     report.splits = splits;
     report.merges = merges;
@@ -620,6 +709,87 @@ mod tests {
         let seg = segment(&p, &n, &vec![0.0; p.len()], h, &ExtentOptions::default());
         assert_eq!(seg.support_points, 0);
         assert_eq!(seg.boxes.len(), 2, "block b and the wall piece touch; block a stands apart");
+    }
+
+    #[test]
+    fn link_radius_follows_the_spacing_of_sparse_input() {
+        let h = 0.05;
+        let mut pts = Vec::new();
+        patch([0.0; 3], [12.0, 0.0, 0.0], [0.0, 6.0, 0.0], [0.0, 0.0, 1.0], h, &mut pts);
+        let (points, normals): (Vec<Point3>, Vec<Point3>) = pts.into_iter().unzip();
+        let o = ExtentOptions::default();
+        // Spaced by ε: the nominal radius.
+        assert_eq!(spacing_scale(&points, h, &o), 1.0);
+        // Spaced by 3ε: every nearest neighbour is 3ε away, 2 × the dense 90th percentile.
+        let eps = h / 3.0;
+        let scale = spacing_scale(&points, eps, &o);
+        assert!((scale - 3.0 / DENSE_NN_Q90).abs() < 1e-9, "{scale}");
+        // At the nominal 2.5ε = 0.83h no two points would link; with the scale the wall is one
+        // support plane.
+        let seg = segment(&points, &normals, &vec![0.0; points.len()], eps, &o);
+        assert!((seg.link_radius - 2.5 * scale).abs() < 1e-9);
+        assert_eq!(seg.support_points, points.len());
+        assert!(seg.boxes.is_empty());
+    }
+
+    #[test]
+    fn boxes_grow_to_their_block_and_repeats_are_dropped() {
+        let h = 0.05;
+        let mut pts = Vec::new();
+        patch([0.0; 3], [12.0, 0.0, 0.0], [0.0, 6.0, 0.0], [0.0, 0.0, 1.0], h, &mut pts); // wall
+        patch([0.0, 0.0, 0.05], [12.0, 0.0, 0.0], [0.0, 0.0, 4.0], [0.0, 1.0, 0.0], h, &mut pts); // ground
+        let blocks: Vec<Aabb> = (0..3)
+            .map(|k| {
+                let x = 1.0 + 3.5 * k as f64;
+                Aabb { min: [x, 1.0, 0.0], max: [x + 1.5, 3.0, 0.5] }
+            })
+            .collect();
+        for b in &blocks {
+            block(b.min, b.max, h, &mut pts);
+        }
+        let (points, normals): (Vec<Point3>, Vec<Point3>) = pts.into_iter().unzip();
+        let n = points.len();
+        let pre = Preprocessed {
+            epsilon: h,
+            diagonal: 13.0,
+            points,
+            normals,
+            kappa: vec![0.0; n],
+            t1: vec![[1.0, 0.0, 0.0]; n],
+            source: (0..n).collect(),
+            features: vec![],
+            normals_estimated: false,
+            warnings: vec![],
+        };
+        // Each block found twice, by a constellation at its lower-left and at its upper-right
+        // corner (boxes 0.4 × 0.4 × 0.5; the padded block is 22 times as large).
+        let corner = |b: &Aabb, upper: bool| {
+            let (x, y) = if upper { (b.max[0] - 0.4, b.max[1] - 0.4) } else { (b.min[0], b.min[1]) };
+            Aabb { min: [x, y, 0.0], max: [x + 0.4, y + 0.4, 0.5] }
+        };
+        let mut c = class(&[(1.0, 1.0); 6], 0.0, 0);
+        for (k, inst) in c.instances.iter_mut().enumerate() {
+            inst.aabb = corner(&blocks[k % 3], k >= 3);
+        }
+        let o = ExtentOptions { regroup: Regroup::Extent, ..Default::default() };
+        let (out, report) = regroup(vec![c.clone()], &pre, 0.5, &o);
+        assert_eq!(report.grown, 6);
+        assert_eq!(report.duplicates, 3);
+        assert_eq!(out.len(), 1);
+        let mut got: Vec<Aabb> = out[0].instances.iter().map(|i| i.aabb).collect();
+        got.sort_by(|a, b| a.min[0].total_cmp(&b.min[0]));
+        for (g, b) in got.iter().zip(&blocks) {
+            for k in 0..3 {
+                // The block's box padded by half a spacing.
+                let (lo, hi) = (b.min[k] - 0.5 * h, b.max[k] + 0.5 * h);
+                assert!((g.min[k] - lo).abs() < 1e-9 && (g.max[k] - hi).abs() < 1e-9, "{g:?}");
+            }
+        }
+        // A growth cap below 22× keeps the corner boxes, and all six instances.
+        let capped = ExtentOptions { max_growth: 8.0, ..o };
+        let (out, report) = regroup(vec![c], &pre, 0.5, &capped);
+        assert_eq!((report.grown, report.duplicates), (0, 0));
+        assert_eq!(out[0].instances.len(), 6);
     }
 
     /// A class of instances with boxes `w × h × 0.5` placed 3 m apart along x, starting at `x0`.

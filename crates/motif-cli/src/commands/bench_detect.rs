@@ -12,7 +12,7 @@ use motif_detect::scenes::{Difficulty, SceneKind, SceneOptions, generate_scene};
 use motif_detect::{DetectOptions, DetectionResult, EvalOptions, evaluate_many, plot_pr_and_stress};
 use serde::Serialize;
 
-use crate::cli::{BenchDetectArgs, GlobalArgs};
+use crate::cli::{BenchDetectArgs, GlobalArgs, RegroupArg};
 use crate::output::{bad_input, check_output, maybe_json};
 use crate::progress::Bar;
 
@@ -57,9 +57,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         o.preprocess.epsilon = Epsilon::Relative(a.epsilon);
         o.em.min_support = a.min_support;
         o.em.peak_share = a.peak_share;
-        if a.regroup {
-            o.extent.regroup = motif_detect::extent::Regroup::Extent;
-        }
+        o.extent.regroup = a.regroup.into();
         o
     };
     super::detect::validate_options(&options(Method::EmSc, g.seed))?;
@@ -145,7 +143,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             a.epsilon,
             a.min_support,
             a.peak_share,
-            if a.regroup { "by extent" } else { "off" },
+            if a.regroup == RegroupArg::Extent { "by extent" } else { "off" },
             eval.tau
         );
         println!("{:<8} {:<24} {:>6} {:>6} {:>6} {:>9}", "level", "method", "P", "R", "F", "median s");
@@ -174,6 +172,6 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         &a.json.json,
         &serde_json::json!({ "rows": rows, "stages": stages, "epsilon": a.epsilon,
             "min_support": a.min_support, "peak_share": a.peak_share, "points": a.points,
-            "regroup": a.regroup }),
+            "regroup": a.regroup == RegroupArg::Extent }),
     )
 }

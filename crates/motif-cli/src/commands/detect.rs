@@ -2,7 +2,6 @@
 
 use motif_core::io::Model;
 use motif_core::{AttributeData, PointCloud};
-use motif_detect::extent::Regroup;
 use motif_detect::pipeline::Method;
 use motif_detect::preprocess::Epsilon;
 use motif_detect::{DetectError, DetectOptions, Detection};
@@ -74,9 +73,7 @@ pub fn options(a: &DetectArgs, g: &GlobalArgs) -> DetectOptions {
     o.em.sigma_s = a.sigma_s;
     o.instances.bandwidth = a.bandwidth;
     o.method = if a.no_em { Method::Sc } else { Method::EmSc };
-    if a.regroup {
-        o.extent.regroup = Regroup::Extent;
-    }
+    o.extent.regroup = a.regroup.into();
     o
 }
 
