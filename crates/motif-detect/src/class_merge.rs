@@ -226,6 +226,7 @@ mod tests {
                     min: [o[0] - 0.1, o[1] - 0.1, o[2] - 0.1],
                     max: [o[0] + w + 0.1, o[1] + h + 0.1, o[2] + 0.1],
                 },
+                footprint: None,
             })
             .collect();
         Class { words: vec![word], centre_word: word, extent: [w, h, 0.2], instances, cluster: word }

@@ -166,6 +166,9 @@ pub struct Instance {
     pub frame: Mat4,
     /// Axis-aligned world box of the class box placed at this instance.
     pub aabb: Aabb,
+    /// The block's size per world axis measured free of its turn about the class's thinnest
+    /// axis, when [`crate::extent`] measured it (`None`: the box's extent stands for it).
+    pub footprint: Option<Point3>,
 }
 
 /// One building-block class.
@@ -824,7 +827,15 @@ fn assemble(
                     }
                 }
             };
-            Instance { centre: r.centre, flip: r.flip, features: r.linked, links: r.links, frame, aabb }
+            Instance {
+                centre: r.centre,
+                flip: r.flip,
+                features: r.linked,
+                links: r.links,
+                frame,
+                aabb,
+                footprint: None,
+            }
         })
         .collect();
     // Merge overlapping instances, best linked first.

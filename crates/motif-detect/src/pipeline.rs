@@ -134,6 +134,7 @@ impl DetectOptions {
             ("instances.min_links", self.instances.min_links),
             ("instances.merge_overlap", self.instances.merge_overlap),
             ("extent.normal_cos", self.extent.normal_cos),
+            ("extent.turned_area", self.extent.turned_area),
         ] {
             if !(0.0..=1.0).contains(&v) {
                 return bad(name, format!("must be between 0 and 1, got {v}"));
