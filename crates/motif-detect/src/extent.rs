@@ -253,14 +253,14 @@ pub const DENSE_NN_Q90: f64 = 1.5;
 /// measured); on the procedural facade sampled with 60k random points (ε raised to the input's
 /// median spacing) the percentile is 2.13ε, and the link radius becomes 3.55ε. A point without a
 /// neighbour within twice the nominal link radius counts as far; the percentile is taken over all
-/// points, so isolated outliers (under 10%) do not move it.
-pub fn spacing_scale(points: &[Point3], eps: f64, o: &ExtentOptions) -> f64 {
+/// points, so isolated outliers (under 10%) do not move it. `hash` holds `points` (any cube
+/// size).
+pub fn spacing_scale(points: &[Point3], hash: &SpatialHash, eps: f64, o: &ExtentOptions) -> f64 {
     let n = points.len();
     if n < 2 || eps.is_nan() || eps <= 0.0 {
         return 1.0;
     }
     let reach = 2.0 * o.link_radius * eps;
-    let hash = SpatialHash::new(points, reach);
     let mut nn: Vec<f64> = (0..n)
         .into_par_iter()
         .map(|i| {
@@ -287,9 +287,10 @@ pub fn segment(
     o: &ExtentOptions,
 ) -> Segments {
     let n = points.len();
-    let link = o.link_radius * spacing_scale(points, eps, o);
+    // One hash at the nominal radius serves the spacing measure and the (possibly wider) links.
+    let hash = SpatialHash::new(points, o.link_radius * eps);
+    let link = o.link_radius * spacing_scale(points, &hash, eps, o);
     let r = link * eps;
-    let hash = SpatialHash::new(points, r);
     let dot = |a: Point3, b: Point3| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
     // 1. Planar regions; a point belongs to the first region that takes it.
     let mut region: Vec<u32> = vec![u32::MAX; n];
@@ -521,19 +522,24 @@ fn convex_hull(p: &mut [[f64; 2]]) -> Vec<[f64; 2]> {
     }
     let cross =
         |o: [f64; 2], a: [f64; 2], b: [f64; 2]| (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
-    let mut h: Vec<[f64; 2]> = Vec::with_capacity(2 * p.len());
-    for pass in 0..2 {
-        let start = h.len();
-        let iter: Box<dyn Iterator<Item = &[f64; 2]>> =
-            if pass == 0 { Box::new(p.iter()) } else { Box::new(p.iter().rev()) };
-        for &q in iter {
-            while h.len() >= start + 2 && cross(h[h.len() - 2], h[h.len() - 1], q) <= 0.0 {
-                h.pop();
-            }
-            h.push(q);
+    // The lower chain left to right, then the upper chain right to left; each drops its last
+    // point, the first of the other.
+    let chain = |h: &mut Vec<[f64; 2]>, q: [f64; 2], start: usize| {
+        while h.len() >= start + 2 && cross(h[h.len() - 2], h[h.len() - 1], q) <= 0.0 {
+            h.pop();
         }
-        h.pop();
+        h.push(q);
+    };
+    let mut h: Vec<[f64; 2]> = Vec::with_capacity(2 * p.len());
+    for &q in p.iter() {
+        chain(&mut h, q, 0);
     }
+    h.pop();
+    let start = h.len();
+    for &q in p.iter().rev() {
+        chain(&mut h, q, start);
+    }
+    h.pop();
     h
 }
 
@@ -837,10 +843,10 @@ mod tests {
         let (points, normals): (Vec<Point3>, Vec<Point3>) = pts.into_iter().unzip();
         let o = ExtentOptions::default();
         // Spaced by ε: the nominal radius.
-        assert_eq!(spacing_scale(&points, h, &o), 1.0);
+        assert_eq!(spacing_scale(&points, &SpatialHash::new(&points, h), h, &o), 1.0);
         // Spaced by 3ε: every nearest neighbour is 3ε away, 2 × the dense 90th percentile.
         let eps = h / 3.0;
-        let scale = spacing_scale(&points, eps, &o);
+        let scale = spacing_scale(&points, &SpatialHash::new(&points, eps), eps, &o);
         assert!((scale - 3.0 / DENSE_NN_Q90).abs() < 1e-9, "{scale}");
         // At the nominal 2.5ε = 0.83h no two points would link; with the scale the wall is one
         // support plane.
