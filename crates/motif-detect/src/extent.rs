@@ -798,12 +798,17 @@ mod tests {
         patch([lo[0], hi[1], lo[2]], dx, dz, [0.0, 1.0, 0.0], h, out);
     }
 
+    /// A 12 × 6 wall in z = 0 facing +z and a 12 × 4 ground in y = 0 facing +y, points every `h`.
+    fn wall_and_ground(h: f64, out: &mut Vec<(Point3, Point3)>) {
+        patch([0.0; 3], [12.0, 0.0, 0.0], [0.0, 6.0, 0.0], [0.0, 0.0, 1.0], h, out);
+        patch([0.0, 0.0, 0.05], [12.0, 0.0, 0.0], [0.0, 0.0, 4.0], [0.0, 1.0, 0.0], h, out);
+    }
+
     #[test]
     fn blocks_are_segmented_apart_from_wall_and_ground() {
         let h = 0.05;
         let mut pts = Vec::new();
-        patch([0.0; 3], [12.0, 0.0, 0.0], [0.0, 6.0, 0.0], [0.0, 0.0, 1.0], h, &mut pts); // wall
-        patch([0.0, 0.0, 0.05], [12.0, 0.0, 0.0], [0.0, 0.0, 4.0], [0.0, 1.0, 0.0], h, &mut pts); // ground
+        wall_and_ground(h, &mut pts);
         let support = pts.len();
         let a = Aabb { min: [2.0, 2.0, 0.0], max: [3.5, 4.0, 0.5] };
         let b = Aabb { min: [7.0, 1.0, 0.0], max: [8.0, 4.5, 0.4] };
@@ -860,8 +865,7 @@ mod tests {
     fn boxes_grow_to_their_block_and_repeats_are_dropped() {
         let h = 0.05;
         let mut pts = Vec::new();
-        patch([0.0; 3], [12.0, 0.0, 0.0], [0.0, 6.0, 0.0], [0.0, 0.0, 1.0], h, &mut pts); // wall
-        patch([0.0, 0.0, 0.05], [12.0, 0.0, 0.0], [0.0, 0.0, 4.0], [0.0, 1.0, 0.0], h, &mut pts); // ground
+        wall_and_ground(h, &mut pts);
         let blocks: Vec<Aabb> = (0..3)
             .map(|k| {
                 let x = 1.0 + 3.5 * k as f64;
