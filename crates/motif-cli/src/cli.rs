@@ -144,6 +144,25 @@ impl From<RegroupArg> for motif_detect::extent::Regroup {
     }
 }
 
+/// The last step of `motif detect`'s extent stage (motif_detect::segment_classes).
+#[derive(Debug, Clone, Copy, ValueEnum, Default, PartialEq)]
+pub enum RepeatedSegmentsArg {
+    /// Only the co-occurrence classes.
+    None,
+    /// Segments no class explains, repeated by size, become classes.
+    #[default]
+    Classes,
+}
+
+impl From<RepeatedSegmentsArg> for motif_detect::segment_classes::RepeatedSegments {
+    fn from(a: RepeatedSegmentsArg) -> Self {
+        match a {
+            RepeatedSegmentsArg::None => motif_detect::segment_classes::RepeatedSegments::None,
+            RepeatedSegmentsArg::Classes => motif_detect::segment_classes::RepeatedSegments::Classes,
+        }
+    }
+}
+
 #[derive(Debug, Clone, Copy, ValueEnum, Default)]
 pub enum StlEncodingArg {
     #[default]
@@ -582,6 +601,9 @@ pub struct BenchDetectArgs {
     /// thesis's output.
     #[arg(long, value_enum, default_value_t = RegroupArg::Extent, value_name = "MODE")]
     pub regroup: RegroupArg,
+    /// Classes of unexplained segments repeated by size (see `motif detect --repeated-segments`).
+    #[arg(long, value_enum, default_value_t = RepeatedSegmentsArg::Classes, value_name = "MODE")]
+    pub repeated_segments: RepeatedSegmentsArg,
     /// Mean PR and stress curves of EM + SC per difficulty (PNG).
     #[arg(long, value_name = "PNG")]
     pub plot: Option<PathBuf>,
@@ -797,6 +819,14 @@ pub struct DetectArgs {
     /// every level of the benchmark scenes). `none` gives the thesis's boxes and classes.
     #[arg(long, value_enum, default_value_t = RegroupArg::Extent, value_name = "MODE")]
     pub regroup: RegroupArg,
+    /// The extent stage's last step (motif_detect::segment_classes; not in the thesis, on by
+    /// default): segments of the scan that no class explains (off the wall and ground planes, at
+    /// least one HOC cell wide in two directions, with enough features) are grouped by their
+    /// sizes along their own axes, and groups of three or more that stand out of the size
+    /// distribution become classes: blocks the co-occurrence analysis cannot link, such as lamp
+    /// posts taller than 64ε and bins with few features. No effect with `--regroup none`.
+    #[arg(long, value_enum, default_value_t = RepeatedSegmentsArg::Classes, value_name = "MODE")]
+    pub repeated_segments: RepeatedSegmentsArg,
     #[command(flatten)]
     pub json: JsonArg,
 }

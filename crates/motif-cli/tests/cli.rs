@@ -724,4 +724,35 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
     let o = motif(&["detect", "s.ply", "-o", "r5.json", "--regroup", "sideways"], dir.path());
     assert!(!o.status.success() && stderr(&o).contains("sideways"), "{}", stderr(&o));
     assert!(!dir.path().join("r5.json").exists());
+    // Classes of repeated segments (the extent stage's last step) are on by default, in the
+    // options and the report; `--repeated-segments none` turns them off.
+    for (mode, want) in [(None, "classes"), (Some("none"), "none")] {
+        let mut args = vec![
+            "detect",
+            "s.ply",
+            "-o",
+            "r6.json",
+            "--epsilon",
+            "0.002",
+            "--json",
+            "r6.rep.json",
+            "--force",
+        ];
+        if let Some(m) = mode {
+            args.extend(["--repeated-segments", m]);
+        }
+        let o = motif(&args, dir.path());
+        assert!(o.status.success(), "{}", stderr(&o));
+        let rep: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.path().join("r6.rep.json")).unwrap()).unwrap();
+        assert_eq!(rep["options"]["extent"]["repeated_segments"], want);
+        let found = &rep["report"]["extent"]["segment_classes"];
+        assert!(found["candidates"].is_u64() && found["classes"].is_u64(), "{found}");
+        if mode.is_some() {
+            assert_eq!(found["candidates"], 0, "{found}");
+        }
+    }
+    let o = motif(&["detect", "s.ply", "-o", "r7.json", "--repeated-segments", "some"], dir.path());
+    assert!(!o.status.success() && stderr(&o).contains("some"), "{}", stderr(&o));
+    assert!(!dir.path().join("r7.json").exists());
 }

@@ -44,6 +44,10 @@
 //!    axis required) are joined, closest pair first. The criterion is relative to each class's own
 //!    spread: under strong variation one style found as three classes is joined again, while on
 //!    scenes with mild variation two styles whose sizes differ by 15% stay apart.
+//! 6. **Repeated segments.** Segments that no class's instance explains, grouped by their sizes
+//!    along their own axes, become classes when three or more stand out of the size
+//!    distribution ([`crate::segment_classes`]): blocks the co-occurrence stages cannot link
+//!    (street lamps taller than 64ε, bins with few features and copies).
 //!
 //! # On by default
 //! [`Regroup::Extent`] is the default (`motif detect --regroup none` gives the thesis's output).
@@ -128,8 +132,9 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::grid::SpatialHash;
-use crate::instances::{Class, Instance, overlaps_any};
-use crate::preprocess::Preprocessed;
+use crate::instances::{Class, Instance, InstanceOptions, overlaps_any};
+use crate::preprocess::{Feature, Preprocessed};
+use crate::segment_classes::{RepeatedSegments, SegmentClassesReport, segment_classes};
 
 /// Whether instance extents are measured and classes regrouped by them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -186,6 +191,22 @@ pub struct ExtentOptions {
     /// save a few percent, and with every footprint used (1.0) the procedural facade sampled
     /// with 60k points fell from F 0.517 to 0.330. Default 0.95.
     pub turned_area: f64,
+    /// Whether unexplained segments repeated by size become classes ([`crate::segment_classes`]).
+    /// Default [`RepeatedSegments::Classes`].
+    pub repeated_segments: RepeatedSegments,
+    /// [`crate::segment_classes`]: cut distance of the size clustering, on log sizes (0.2: a 22%
+    /// size ratio, more than the copies of one block differ in the benchmark scenes under 15%
+    /// variation once measured along their principal axes, less than two kinds of street
+    /// furniture). Default 0.2.
+    pub segment_distance: f64,
+    /// [`crate::segment_classes`]: a group of segments needs at least this many members to be a
+    /// class. Three, not two: two objects of one size happen by chance among tens of segments.
+    /// Default 3.
+    pub segment_min_instances: usize,
+    /// [`crate::segment_classes`]: a group is kept when the candidates in the shell between one
+    /// and 2.5 cut distances around it number at most this many times those inside one cut
+    /// distance (a peak of the size distribution, not a slice of random sizes). Default 0.75.
+    pub segment_contrast: f64,
 }
 
 impl Default for ExtentOptions {
@@ -201,6 +222,10 @@ impl Default for ExtentOptions {
             merge_distance: 1.0,
             spread_floor: 0.03,
             turned_area: 0.95,
+            repeated_segments: RepeatedSegments::Classes,
+            segment_distance: 0.2,
+            segment_min_instances: 3,
+            segment_contrast: 0.75,
         }
     }
 }
@@ -222,6 +247,8 @@ pub struct ExtentReport {
     pub splits: usize,
     /// Classes joined.
     pub merges: usize,
+    /// Classes of unexplained repeated segments ([`crate::segment_classes`]).
+    pub segment_classes: SegmentClassesReport,
 }
 
 impl Segments {
@@ -489,30 +516,7 @@ fn footprint(points: &[Point3], thin: usize, extent: Point3, turned_area: f64) -
     let (a, b) = (a.min(b), a.max(b));
     let mut q: Vec<[f64; 2]> = points.iter().map(|p| [p[a], p[b]]).collect();
     let hull = convex_hull(&mut q);
-    if hull.len() < 3 {
-        return extent;
-    }
-    // Smallest area over the hull's edge directions; ties keep the first edge.
-    let mut best: Option<(f64, [f64; 2], f64, f64)> = None;
-    for k in 0..hull.len() {
-        let (p, r) = (hull[k], hull[(k + 1) % hull.len()]);
-        let d = [r[0] - p[0], r[1] - p[1]];
-        let len = d[0].hypot(d[1]);
-        if len == 0.0 {
-            continue;
-        }
-        let u = [d[0] / len, d[1] / len];
-        let (mut lo_u, mut hi_u, mut lo_v, mut hi_v) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-        for h in &hull {
-            let (su, sv) = (h[0] * u[0] + h[1] * u[1], -h[0] * u[1] + h[1] * u[0]);
-            (lo_u, hi_u, lo_v, hi_v) = (lo_u.min(su), hi_u.max(su), lo_v.min(sv), hi_v.max(sv));
-        }
-        let (wu, wv) = (hi_u - lo_u, hi_v - lo_v);
-        if best.is_none_or(|x| wu * wv < x.0) {
-            best = Some((wu * wv, u, wu, wv));
-        }
-    }
-    let Some((area, u, wu, wv)) = best else { return extent };
+    let Some(Rectangle { area, u, wu, wv }) = smallest_rectangle(&hull) else { return extent };
     let (mut lo, mut hi) = ([f64::MAX; 2], [f64::MIN; 2]);
     for h in &hull {
         for k in 0..2 {
@@ -530,9 +534,47 @@ fn footprint(points: &[Point3], thin: usize, extent: Point3, turned_area: f64) -
     out
 }
 
+/// A rectangle holding a planar point set: its area, the unit direction `u` of one side and the
+/// side lengths along `u` (`wu`) and across it (`wv`).
+pub(crate) struct Rectangle {
+    pub area: f64,
+    pub u: [f64; 2],
+    pub wu: f64,
+    pub wv: f64,
+}
+
+/// The smallest-area rectangle around a convex polygon (`hull`, from [`convex_hull`]): one of
+/// its sides lies along a hull edge (rotating calipers, Freeman and Shapira 1975), so every
+/// edge direction is tried; ties keep the first edge. `None` for fewer than three hull points.
+pub(crate) fn smallest_rectangle(hull: &[[f64; 2]]) -> Option<Rectangle> {
+    if hull.len() < 3 {
+        return None;
+    }
+    let mut best: Option<Rectangle> = None;
+    for k in 0..hull.len() {
+        let (p, r) = (hull[k], hull[(k + 1) % hull.len()]);
+        let d = [r[0] - p[0], r[1] - p[1]];
+        let len = d[0].hypot(d[1]);
+        if len == 0.0 {
+            continue;
+        }
+        let u = [d[0] / len, d[1] / len];
+        let (mut lo_u, mut hi_u, mut lo_v, mut hi_v) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+        for h in hull {
+            let (su, sv) = (h[0] * u[0] + h[1] * u[1], -h[0] * u[1] + h[1] * u[0]);
+            (lo_u, hi_u, lo_v, hi_v) = (lo_u.min(su), hi_u.max(su), lo_v.min(sv), hi_v.max(sv));
+        }
+        let (wu, wv) = (hi_u - lo_u, hi_v - lo_v);
+        if best.as_ref().is_none_or(|x| wu * wv < x.area) {
+            best = Some(Rectangle { area: wu * wv, u, wu, wv });
+        }
+    }
+    best
+}
+
 /// The convex hull of `p` (Andrew's monotone chain), counter-clockwise, without collinear
 /// points; sorts `p`.
-fn convex_hull(p: &mut [[f64; 2]]) -> Vec<[f64; 2]> {
+pub(crate) fn convex_hull(p: &mut [[f64; 2]]) -> Vec<[f64; 2]> {
     p.sort_by(|x, y| x[0].total_cmp(&y[0]).then(x[1].total_cmp(&y[1])));
     if p.len() < 3 {
         return p.to_vec();
@@ -588,16 +630,13 @@ fn chebyshev(a: [f64; 2], b: [f64; 2]) -> f64 {
     (a[0] - b[0]).abs().max((a[1] - b[1]).abs())
 }
 
-/// Step 4: the groups of `class`'s instances (indices), or `None` to keep it whole.
-fn split_groups(class: &Class, o: &ExtentOptions) -> Option<Vec<Vec<usize>>> {
-    let n = class.instances.len();
-    if n < 4 {
-        return None;
-    }
-    let thin = thinnest(&class.instances);
-    let s: Vec<[f64; 2]> = class.instances.iter().map(|i| log_sizes(i, thin)).collect();
-    // Average linkage, naive O(n³): classes have tens of instances.
-    let mut groups: Vec<Vec<usize>> = (0..n).map(|i| vec![i]).collect();
+/// Average-linkage clustering of `points` under the Chebyshev distance, cut at `cut`: groups
+/// of indices, each ascending, ordered by their first index. Ties join the first pair found
+/// (lowest indices), so the result does not depend on anything but the points' order. Naive
+/// O(n³): the callers cluster tens of instances or segments.
+pub(crate) fn average_linkage<const N: usize>(points: &[[f64; N]], cut: f64) -> Vec<Vec<usize>> {
+    let chebyshev = |a: &[f64; N], b: &[f64; N]| (0..N).map(|k| (a[k] - b[k]).abs()).fold(0.0, f64::max);
+    let mut groups: Vec<Vec<usize>> = (0..points.len()).map(|i| vec![i]).collect();
     loop {
         let mut best: Option<(f64, usize, usize)> = None;
         for a in 0..groups.len() {
@@ -605,11 +644,11 @@ fn split_groups(class: &Class, o: &ExtentOptions) -> Option<Vec<Vec<usize>>> {
                 let mut sum = 0.0;
                 for &x in &groups[a] {
                     for &y in &groups[b] {
-                        sum += chebyshev(s[x], s[y]);
+                        sum += chebyshev(&points[x], &points[y]);
                     }
                 }
                 let d = sum / (groups[a].len() * groups[b].len()) as f64;
-                if d < o.split_distance && best.is_none_or(|x| d < x.0) {
+                if d < cut && best.is_none_or(|x| d < x.0) {
                     best = Some((d, a, b));
                 }
             }
@@ -619,6 +658,18 @@ fn split_groups(class: &Class, o: &ExtentOptions) -> Option<Vec<Vec<usize>>> {
         groups[a].extend(moved);
         groups[a].sort_unstable();
     }
+    groups
+}
+
+/// Step 4: the groups of `class`'s instances (indices), or `None` to keep it whole.
+fn split_groups(class: &Class, o: &ExtentOptions) -> Option<Vec<Vec<usize>>> {
+    let n = class.instances.len();
+    if n < 4 {
+        return None;
+    }
+    let thin = thinnest(&class.instances);
+    let s: Vec<[f64; 2]> = class.instances.iter().map(|i| log_sizes(i, thin)).collect();
+    let groups = average_linkage(&s, o.split_distance);
     if groups.len() < 2 {
         return None;
     }
@@ -660,14 +711,18 @@ fn size_stats(instances: &[Instance], thin: usize) -> ([f64; 2], [f64; 2]) {
     (med, sd)
 }
 
-/// Steps 1–5 of the module documentation on `classes` (boxes grown in place); returns the
-/// classes, largest first, and what was done.
+/// Steps 1–6 of the module documentation on `classes` (boxes grown in place); returns the
+/// classes, largest first, and what was done. `features` are the detector's features (step 6
+/// counts them per segment); `io` gives the overlap share of one block
+/// ([`InstanceOptions::merge_overlap`]) and the features a block needs.
 pub fn regroup(
     mut classes: Vec<Class>,
     pre: &Preprocessed,
-    merge_overlap: f64,
+    features: &[Feature],
+    io: &InstanceOptions,
     o: &ExtentOptions,
 ) -> (Vec<Class>, ExtentReport) {
+    let merge_overlap = io.merge_overlap;
     let mut report = ExtentReport::default();
     if o.regroup == Regroup::None || classes.is_empty() || pre.points.is_empty() {
         return (classes, report);
@@ -711,9 +766,15 @@ pub fn regroup(
     }
     // A class needs two instances to be a repetition.
     classes.retain(|c| c.instances.len() >= 2);
-    let (classes, splits, merges) = split_and_merge(classes, merge_overlap, o);
+    let (mut classes, splits, merges) = split_and_merge(classes, merge_overlap, o);
     report.splits = splits;
     report.merges = merges;
+    let next_cluster = classes.iter().map(|c| c.cluster.saturating_add(1)).max().unwrap_or(0);
+    let (found, r) = segment_classes(&classes, &seg, &members, pre, features, io, o, next_cluster);
+    report.segment_classes = r;
+    classes.extend(found);
+    // Stable: the co-occurrence classes keep their order among classes of equal size.
+    classes.sort_by_key(|c| std::cmp::Reverse(c.instances.len()));
     (classes, report)
 }
 
@@ -917,7 +978,8 @@ mod tests {
             inst.aabb = corner(&blocks[k % 3], k >= 3);
         }
         let o = ExtentOptions { regroup: Regroup::Extent, ..Default::default() };
-        let (out, report) = regroup(vec![c.clone()], &pre, 0.5, &o);
+        let io = InstanceOptions::default();
+        let (out, report) = regroup(vec![c.clone()], &pre, &[], &io, &o);
         assert_eq!(report.grown, 6);
         assert_eq!(report.duplicates, 3);
         assert_eq!(out.len(), 1);
@@ -936,7 +998,7 @@ mod tests {
         }
         // A growth cap below 22× keeps the corner boxes, and all six instances.
         let capped = ExtentOptions { max_growth: 8.0, ..o };
-        let (out, report) = regroup(vec![c], &pre, 0.5, &capped);
+        let (out, report) = regroup(vec![c], &pre, &[], &io, &capped);
         assert_eq!((report.grown, report.duplicates), (0, 0));
         assert_eq!(out[0].instances.len(), 6);
     }

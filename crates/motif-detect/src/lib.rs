@@ -13,6 +13,8 @@
 //!   the thesis);
 //! - [`extent`]: instance extents by segmentation and classes regrouped by size (not in the
 //!   thesis);
+//! - [`segment_classes`]: classes of unexplained segments repeated by size (not in the thesis;
+//!   the extent stage's last step);
 //! - [`eval`]: the evaluation protocol of thesis 5.5.2 (box matching, precision, recall, F, the
 //!   PR curve by class removal and the stress curve over the overlap threshold τ);
 //! - [`plot`]: the PR and stress curves as a PNG (like the thesis's Fig. 5.9);
@@ -37,6 +39,7 @@ pub mod plot;
 pub mod preprocess;
 pub mod rigid_icp;
 pub mod scenes;
+pub mod segment_classes;
 
 pub use detection::{DetectedClass, DetectedInstance, DetectionResult};
 pub use error::{DetectError, Result};

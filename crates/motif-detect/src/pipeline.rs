@@ -122,6 +122,7 @@ impl DetectOptions {
             ("extent.split_distance", self.extent.split_distance),
             ("extent.merge_distance", self.extent.merge_distance),
             ("extent.spread_floor", self.extent.spread_floor),
+            ("extent.segment_distance", self.extent.segment_distance),
         ] {
             if !(v.is_finite() && v > 0.0) {
                 return bad(name, format!("must be positive and finite, got {v}"));
@@ -147,6 +148,10 @@ impl DetectOptions {
         if !(self.mdl_min_saving.is_finite() && self.mdl_min_saving >= 0.0) {
             let v = self.mdl_min_saving;
             return bad("mdl_min_saving", format!("must be finite and ≥ 0, got {v}"));
+        }
+        if !(self.extent.segment_contrast.is_finite() && self.extent.segment_contrast >= 0.0) {
+            let v = self.extent.segment_contrast;
+            return bad("extent.segment_contrast", format!("must be finite and ≥ 0, got {v}"));
         }
         if self.dictionary.words < 2 {
             return bad("dictionary.words", format!("must be at least 2, got {}", self.dictionary.words));
@@ -421,7 +426,7 @@ pub fn detect(
     }
     if o.extent.regroup == Regroup::Extent {
         let t = Instant::now();
-        let (regrouped, r) = regroup(classes, &pre, o.instances.merge_overlap, &o.extent);
+        let (regrouped, r) = regroup(classes, &pre, &features, &o.instances, &o.extent);
         classes = regrouped;
         report.extent = r;
         report.seconds.instances += t.elapsed().as_secs_f64();

@@ -7,8 +7,11 @@ use motif_core::sampling::sample_surface;
 use motif_core::{Point3, PointCloud};
 use motif_detect::extent::Regroup;
 use motif_detect::pipeline::Method;
-use motif_detect::preprocess::Epsilon;
-use motif_detect::{DetectOptions, DetectionResult, EvalOptions, detect, evaluate};
+use motif_detect::preprocess::{Epsilon, PreprocessOptions};
+use motif_detect::{
+    DetectOptions, DetectionResult, Difficulty, EvalOptions, SceneKind, SceneOptions, detect, evaluate,
+    generate_scene,
+};
 
 /// The generated facade sampled with face normals, and its ground truth.
 fn facade(samples: usize) -> (PointCloud, DetectionResult) {
@@ -70,6 +73,44 @@ fn moved_truth(gt: &DetectionResult, m: &Mat4) -> DetectionResult {
     out
 }
 
+/// Detects `cloud` and its copy moved by `m` (a rotation by quarter turns and a shift) with
+/// `o`, and checks that the second detection is the moved first one: the same classes and
+/// instance counts, boxes within 10⁻⁹ of the diagonal, the same instance points, the same F.
+/// Returns the first detection's report.
+fn assert_invariant(
+    cloud: &PointCloud,
+    gt: &DetectionResult,
+    o: &DetectOptions,
+    m: &Mat4,
+) -> motif_detect::DetectReport {
+    let a = detect(cloud, "a", o, &NoProgress, false).expect("detection");
+    let b = detect(&moved(cloud, m), "b", o, &NoProgress, false).expect("detection of the moved copy");
+    assert!((a.report.epsilon - b.report.epsilon).abs() < 1e-6 * a.report.epsilon);
+    assert_eq!(a.report.instances_per_class, b.report.instances_per_class);
+    let tol = 1e-9 * a.report.diagonal;
+    let moved_a = moved_truth(&a.result, m);
+    for (ca, cb) in moved_a.classes.iter().zip(&b.result.classes) {
+        for (ia, ib) in ca.instances.iter().zip(&cb.instances) {
+            for k in 0..3 {
+                assert!(
+                    (ia.bbox_min[k] - ib.bbox_min[k]).abs() < tol
+                        && (ia.bbox_max[k] - ib.bbox_max[k]).abs() < tol,
+                    "moved box {:?}..{:?}, box of the moved copy {:?}..{:?}",
+                    ia.bbox_min,
+                    ia.bbox_max,
+                    ib.bbox_min,
+                    ib.bbox_max
+                );
+            }
+            assert_eq!(ia.points, ib.points, "instance points (input indices) differ");
+        }
+    }
+    let fa = evaluate(&a.result, gt, &EvalOptions::default()).expect("eval").f;
+    let fb = evaluate(&b.result, &moved_truth(gt, m), &EvalOptions::default()).expect("eval").f;
+    assert!(fa > 0.0 && (fa - fb).abs() < 1e-12, "F {fa:.3} before, {fb:.3} after the motion");
+    a.report
+}
+
 #[test]
 fn detection_is_invariant_to_a_rigid_motion() {
     // A quarter turn about z, then about x, and a shift: world-axis-aligned boxes stay
@@ -87,35 +128,24 @@ fn detection_is_invariant_to_a_rigid_motion() {
     for regroup in [Regroup::None, Regroup::Extent] {
         let mut o = options();
         o.extent.regroup = regroup;
-        let a = detect(&cloud, "a", &o, &NoProgress, false).expect("detection");
-        let b = detect(&moved(&cloud, &m), "b", &o, &NoProgress, false).expect("detection of the moved copy");
-        assert!((a.report.epsilon - b.report.epsilon).abs() < 1e-6 * a.report.epsilon);
-        assert_eq!(a.report.instances_per_class, b.report.instances_per_class);
+        let report = assert_invariant(&cloud, &gt, &o, &m);
         if regroup == Regroup::Extent {
-            assert!(a.report.extent.segments > 0 && a.report.extent.grown > 0, "{:?}", a.report.extent);
+            assert!(report.extent.segments > 0 && report.extent.grown > 0, "{:?}", report.extent);
         }
-        let tol = 1e-9 * a.report.diagonal;
-        let moved_a = moved_truth(&a.result, &m);
-        for (ca, cb) in moved_a.classes.iter().zip(&b.result.classes) {
-            for (ia, ib) in ca.instances.iter().zip(&cb.instances) {
-                for k in 0..3 {
-                    assert!(
-                        (ia.bbox_min[k] - ib.bbox_min[k]).abs() < tol
-                            && (ia.bbox_max[k] - ib.bbox_max[k]).abs() < tol,
-                        "moved box {:?}..{:?}, box of the moved copy {:?}..{:?}",
-                        ia.bbox_min,
-                        ia.bbox_max,
-                        ib.bbox_min,
-                        ib.bbox_max
-                    );
-                }
-                assert_eq!(ia.points, ib.points, "instance points (input indices) differ");
-            }
-        }
-        let fa = evaluate(&a.result, &gt, &EvalOptions::default()).expect("eval").f;
-        let fb = evaluate(&b.result, &moved_truth(&gt, &m), &EvalOptions::default()).expect("eval").f;
-        assert!(fa > 0.0 && (fa - fb).abs() < 1e-12, "F {fa:.3} before, {fb:.3} after the motion");
     }
+    // A street scan, where unexplained segments repeated by size (motif_detect::segment_classes)
+    // become classes: their boxes and frames come from each segment's own axes.
+    let street = generate_scene(
+        SceneKind::Street,
+        &SceneOptions { difficulty: Difficulty::Easy, points: 100_000, seed: 2, ..Default::default() },
+    )
+    .expect("street scene");
+    let o = DetectOptions {
+        preprocess: PreprocessOptions { epsilon: Epsilon::Relative(0.0012), ..Default::default() },
+        ..options()
+    };
+    let report = assert_invariant(&street.cloud, &street.ground_truth, &o, &m);
+    assert!(report.extent.segment_classes.classes > 0, "{:?}", report.extent);
     let o = options();
     // A general rotation (not a quarter turn) changes the world-axis-aligned boxes themselves, so
     // only the outcome can be compared: classes are still found.
@@ -171,8 +201,10 @@ fn absurd_epsilon_is_refused_unless_forced() {
 #[test]
 fn options_out_of_range_are_refused_by_name() {
     let (cloud, _) = facade(2_000);
-    let cases: [(&str, fn(&mut DetectOptions)); 5] = [
+    let cases: [(&str, fn(&mut DetectOptions)); 7] = [
         ("em.peak_share", |o| o.em.peak_share = 1.5),
+        ("extent.segment_distance", |o| o.extent.segment_distance = -0.2),
+        ("extent.segment_contrast", |o| o.extent.segment_contrast = f64::INFINITY),
         ("em.sigma_s", |o| o.em.sigma_s = 0.0),
         ("dictionary.sigma", |o| o.dictionary.sigma = f64::NAN),
         ("instances.box_trim", |o| o.instances.box_trim = 0.5),

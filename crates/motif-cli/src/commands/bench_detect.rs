@@ -12,7 +12,7 @@ use motif_detect::scenes::{Difficulty, SceneKind, SceneOptions, generate_scene};
 use motif_detect::{DetectOptions, DetectionResult, EvalOptions, evaluate_many, plot_pr_and_stress};
 use serde::Serialize;
 
-use crate::cli::{BenchDetectArgs, GlobalArgs, RegroupArg};
+use crate::cli::{BenchDetectArgs, GlobalArgs, RegroupArg, RepeatedSegmentsArg};
 use crate::output::{bad_input, check_output, maybe_json};
 use crate::progress::Bar;
 
@@ -58,6 +58,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         o.em.min_support = a.min_support;
         o.em.peak_share = a.peak_share;
         o.extent.regroup = a.regroup.into();
+        o.extent.repeated_segments = a.repeated_segments.into();
         o
     };
     super::detect::validate_options(&options(Method::EmSc, g.seed))?;
@@ -136,7 +137,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     }
     if !crate::output::json_on_stdout(&a.json.json) {
         println!(
-            "{} × {} scenes of {} points, ε = {} × diagonal, minimum support {}, peak share {}, regroup {}, τ = {}",
+            "{} × {} scenes of {} points, ε = {} × diagonal, minimum support {}, peak share {}, regroup {}, repeated segments {}, τ = {}",
             a.kind,
             a.scenes,
             a.points,
@@ -144,6 +145,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             a.min_support,
             a.peak_share,
             if a.regroup == RegroupArg::Extent { "by extent" } else { "off" },
+            if a.repeated_segments == RepeatedSegmentsArg::Classes { "as classes" } else { "off" },
             eval.tau
         );
         println!("{:<8} {:<24} {:>6} {:>6} {:>6} {:>9}", "level", "method", "P", "R", "F", "median s");
@@ -172,6 +174,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         &a.json.json,
         &serde_json::json!({ "rows": rows, "stages": stages, "epsilon": a.epsilon,
             "min_support": a.min_support, "peak_share": a.peak_share, "points": a.points,
-            "regroup": a.regroup == RegroupArg::Extent }),
+            "regroup": a.regroup == RegroupArg::Extent,
+            "repeated_segments": a.repeated_segments == RepeatedSegmentsArg::Classes }),
     )
 }

@@ -74,6 +74,7 @@ pub fn options(a: &DetectArgs, g: &GlobalArgs) -> DetectOptions {
     o.instances.bandwidth = a.bandwidth;
     o.method = if a.no_em { Method::Sc } else { Method::EmSc };
     o.extent.regroup = a.regroup.into();
+    o.extent.repeated_segments = a.repeated_segments.into();
     o
 }
 
