@@ -724,7 +724,7 @@ pub fn regroup(
 ) -> (Vec<Class>, ExtentReport) {
     let merge_overlap = io.merge_overlap;
     let mut report = ExtentReport::default();
-    if o.regroup == Regroup::None || classes.is_empty() || pre.points.is_empty() {
+    if o.regroup == Regroup::None || pre.points.is_empty() {
         return (classes, report);
     }
     let eps = pre.epsilon;
