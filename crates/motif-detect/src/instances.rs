@@ -153,7 +153,8 @@ impl Default for InstanceOptions {
 /// One detected instance.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Instance {
-    /// The centre feature (a member of the class's median word).
+    /// The centre feature (a member of the class's median word; for a class of repeated
+    /// segments, [`crate::segment_classes`], the segment's feature nearest its centroid).
     pub centre: usize,
     /// Its frame flip.
     pub flip: u8,
@@ -176,13 +177,16 @@ pub struct Instance {
 pub struct Class {
     /// Indices of the words forming the class.
     pub words: Vec<usize>,
-    /// The centre (median) word.
+    /// The centre (median) word; `usize::MAX` for a class of repeated segments
+    /// ([`crate::segment_classes`]), which has no words.
     pub centre_word: usize,
     /// The class box's size in world axes (median over instances, padded).
     pub extent: Point3,
     /// The instances.
     pub instances: Vec<Instance>,
-    /// The co-occurrence cluster the class came from (classes split from one cluster share it).
+    /// The co-occurrence cluster the class came from (classes split from one cluster share it);
+    /// classes of repeated segments ([`crate::segment_classes`]) get numbers of their own after
+    /// the clusters'.
     pub cluster: usize,
 }
 

@@ -156,6 +156,32 @@ pub struct Preprocessed {
     pub warnings: Vec<String>,
 }
 
+#[cfg(test)]
+impl Preprocessed {
+    /// A resampling of `points` (with `normals`) at spacing `epsilon` with zero curvature and no
+    /// features, for unit tests of the later stages.
+    pub(crate) fn for_tests(
+        points: Vec<Point3>,
+        normals: Vec<Point3>,
+        epsilon: f64,
+        diagonal: f64,
+    ) -> Preprocessed {
+        let n = points.len();
+        Preprocessed {
+            epsilon,
+            diagonal,
+            points,
+            normals,
+            kappa: vec![0.0; n],
+            t1: vec![[1.0, 0.0, 0.0]; n],
+            source: (0..n).collect(),
+            features: vec![],
+            normals_estimated: false,
+            warnings: vec![],
+        }
+    }
+}
+
 /// Diagonal of the principal-axes bounding box: invariant under rigid motions, unlike the
 /// world-axes box.
 pub fn principal_diagonal(points: &[Point3]) -> f64 {

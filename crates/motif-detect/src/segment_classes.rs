@@ -70,7 +70,7 @@ use motif_core::Point3;
 use motif_core::geometry::{Aabb, Mat4, add, cross, dot, scale, sub};
 use serde::{Deserialize, Serialize};
 
-use crate::extent::{ExtentOptions, Segments, average_linkage, convex_hull, smallest_rectangle};
+use crate::extent::{ExtentOptions, Segments, average_linkage, convex_hull, median, smallest_rectangle};
 use crate::instances::{Class, Instance, InstanceOptions};
 use crate::preprocess::{Feature, Preprocessed};
 
@@ -237,16 +237,11 @@ pub(crate) fn segment_classes(
     report.groups = groups.len();
     let mut out = Vec::new();
     for group in groups {
-        let median: [f64; 3] = std::array::from_fn(|k| {
-            let mut v: Vec<f64> = group.iter().map(|&i| sizes[i][k]).collect();
-            v.sort_by(f64::total_cmp);
-            let m = v.len() / 2;
-            if v.len() % 2 == 1 { v[m] } else { 0.5 * (v[m - 1] + v[m]) }
-        });
+        let middle: [f64; 3] = std::array::from_fn(|k| median(group.iter().map(|&i| sizes[i][k]).collect()));
         let d = o.segment_distance;
         let (mut inside, mut shell) = (0usize, 0usize);
         for s in &sizes {
-            let r = (0..3).map(|k| (s[k] - median[k]).abs()).fold(0.0, f64::max);
+            let r = (0..3).map(|k| (s[k] - middle[k]).abs()).fold(0.0, f64::max);
             if r <= d {
                 inside += 1;
             } else if r <= CONTRAST_SHELL * d {
@@ -282,11 +277,7 @@ pub(crate) fn segment_classes(
             })
             .collect();
         report.instances += instances.len();
-        let extent = std::array::from_fn(|k| {
-            let mut v: Vec<f64> = instances.iter().map(|i| i.aabb.extent()[k]).collect();
-            v.sort_by(f64::total_cmp);
-            v[v.len() / 2]
-        });
+        let extent = std::array::from_fn(|k| median(instances.iter().map(|i| i.aabb.extent()[k]).collect()));
         out.push(Class {
             words: Vec::new(),
             centre_word: usize::MAX,
@@ -361,18 +352,7 @@ mod tests {
         block([0.6, 2.0, 0.45], [26.0, 2.0], 0.0, h, &mut pts);
         let (points, normals): (Vec<Point3>, Vec<Point3>) = pts.into_iter().unzip();
         let n = points.len();
-        let pre = Preprocessed {
-            epsilon: h,
-            diagonal: 33.0,
-            points: points.clone(),
-            normals: normals.clone(),
-            kappa: vec![0.0; n],
-            t1: vec![[1.0, 0.0, 0.0]; n],
-            source: (0..n).collect(),
-            features: vec![],
-            normals_estimated: false,
-            warnings: vec![],
-        };
+        let pre = Preprocessed::for_tests(points.clone(), normals.clone(), h, 33.0);
         // A feature every 7th point off the ground.
         let features: Vec<Feature> = (ground..n)
             .step_by(7)
