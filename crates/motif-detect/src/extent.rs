@@ -654,8 +654,9 @@ fn log_sizes(inst: &Instance, thin: usize) -> [f64; 2] {
     [e[a].max(f64::MIN_POSITIVE).ln(), e[b].max(f64::MIN_POSITIVE).ln()]
 }
 
-fn chebyshev(a: [f64; 2], b: [f64; 2]) -> f64 {
-    (a[0] - b[0]).abs().max((a[1] - b[1]).abs())
+/// The Chebyshev (largest per-coordinate) distance between `a` and `b`.
+pub(crate) fn chebyshev<const N: usize>(a: &[f64; N], b: &[f64; N]) -> f64 {
+    (0..N).map(|k| (a[k] - b[k]).abs()).fold(0.0, f64::max)
 }
 
 /// Average-linkage clustering of `points` under the Chebyshev distance, cut at `cut`: groups
@@ -663,7 +664,6 @@ fn chebyshev(a: [f64; 2], b: [f64; 2]) -> f64 {
 /// (lowest indices), so the result does not depend on anything but the points' order. Naive
 /// O(n³): the callers cluster tens of instances or segments.
 pub(crate) fn average_linkage<const N: usize>(points: &[[f64; N]], cut: f64) -> Vec<Vec<usize>> {
-    let chebyshev = |a: &[f64; N], b: &[f64; N]| (0..N).map(|k| (a[k] - b[k]).abs()).fold(0.0, f64::max);
     let mut groups: Vec<Vec<usize>> = (0..points.len()).map(|i| vec![i]).collect();
     loop {
         let mut best: Option<(f64, usize, usize)> = None;
@@ -714,7 +714,7 @@ fn split_groups(class: &Class, o: &ExtentOptions) -> Option<Vec<Vec<usize>>> {
         .collect();
     for i in small.into_iter().flatten() {
         let g = (0..big.len())
-            .fold(0, |b, g| if chebyshev(s[i], means[g]) < chebyshev(s[i], means[b]) { g } else { b });
+            .fold(0, |b, g| if chebyshev(&s[i], &means[g]) < chebyshev(&s[i], &means[b]) { g } else { b });
         big[g].push(i);
     }
     for g in &mut big {

@@ -70,7 +70,9 @@ use motif_core::Point3;
 use motif_core::geometry::{Aabb, Mat4, add, cross, dot, scale, sub};
 use serde::{Deserialize, Serialize};
 
-use crate::extent::{ExtentOptions, Segments, average_linkage, convex_hull, median, smallest_rectangle};
+use crate::extent::{
+    ExtentOptions, Segments, average_linkage, chebyshev, convex_hull, median, smallest_rectangle,
+};
 use crate::instances::{Class, Instance, InstanceOptions};
 use crate::preprocess::{Feature, Preprocessed};
 
@@ -241,7 +243,7 @@ pub(crate) fn segment_classes(
         let d = o.segment_distance;
         let (mut inside, mut shell) = (0usize, 0usize);
         for s in &sizes {
-            let r = (0..3).map(|k| (s[k] - middle[k]).abs()).fold(0.0, f64::max);
+            let r = chebyshev(s, &middle);
             if r <= d {
                 inside += 1;
             } else if r <= CONTRAST_SHELL * d {
