@@ -372,6 +372,14 @@ fn bench_retarget_reports_fig_4_8_figures() {
         assert!(o["nodes"].as_u64().unwrap() < dense["nodes"].as_u64().unwrap(), "{m}");
         assert!(o["labels"].as_u64().unwrap() < dense["labels"].as_u64().unwrap(), "{m}");
         assert!(m["principal_offsets"].as_u64().unwrap() >= 1, "{m}");
+        // One run per figure: the step's stages happen within the timed step.
+        for f in [o, dense] {
+            let stages: Vec<f64> =
+                f["stages_ms"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+            assert_eq!(stages.len(), 5, "{m}");
+            assert!(stages.iter().all(|&v| v >= 0.0), "{m}");
+            assert!(stages.iter().sum::<f64>() <= f["retarget_ms"].as_f64().unwrap(), "{m}");
+        }
     }
     let i = &r["interactive"][0];
     assert_eq!((i["nodes"].as_u64(), i["labels"].as_u64()), (Some(900), Some(30)));

@@ -47,6 +47,8 @@ struct MethodFigures {
     energy: f64,
     graph_cut_ms: f64,
     retarget_ms: f64,
+    /// Medians of the step's stages (voxelize, descriptors, distances, graph cut, stitch), ms.
+    stages_ms: [f64; 5],
 }
 
 #[derive(Debug, Serialize)]
@@ -166,12 +168,21 @@ pub fn run(a: BenchRetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         let figures = |method| -> anyhow::Result<MethodFigures> {
             let options = RetargetOptions { method, seed: g.seed, ..Default::default() };
             let (mut cut, mut step, mut last) = (Vec::new(), Vec::new(), None);
+            let mut stages: [Vec<f64>; 5] = Default::default();
             for _ in 0..a.repeats {
                 let t = Instant::now();
                 let r = RetargetSession::with_features(&mesh, &features, &principal, &options, &NoProgress)?
                     .retarget(steps, &NoProgress)?;
                 step.push(ms(t));
                 cut.push(r.report.graph_cut_ms);
+                let st = &r.report.stages;
+                for (k, v) in
+                    [st.voxelize_ms, st.descriptors_ms, st.distances_ms, st.graph_cut_ms, st.stitch_ms]
+                        .into_iter()
+                        .enumerate()
+                {
+                    stages[k].push(v);
+                }
                 last = Some(r.report);
             }
             let Some(r) = last else { unreachable!("repeats >= 1") };
@@ -181,6 +192,7 @@ pub fn run(a: BenchRetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 energy: r.energy,
                 graph_cut_ms: median(cut),
                 retarget_ms: median(step),
+                stages_ms: stages.map(median),
             })
         };
         let offsets = figures(RetargetMethod::Offsets)?;
@@ -312,6 +324,14 @@ fn print_tables(r: &Report) {
         println!("* real model from the shared data");
     }
     println!("thesis {}", r.thesis);
+    println!();
+    println!(
+        "Where the step's time goes (medians, ms): voxelize / descriptors / distances / graph cut / stitch"
+    );
+    for m in &r.models {
+        let row = |s: &[f64; 5]| s.iter().map(|v| format!("{v:>6.2}")).collect::<Vec<_>>().join(" ");
+        println!("{:<14} offsets {} | dense {}", m.model, row(&m.offsets.stages_ms), row(&m.dense.stages_ms));
+    }
     println!();
     println!("Interactive size (thesis 4.4: ~1,000 nodes, 30 labels; target: graph cut < 20 ms)");
     for i in &r.interactive {

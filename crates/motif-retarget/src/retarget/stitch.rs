@@ -15,6 +15,8 @@
 
 use std::collections::HashMap;
 
+use foldhash::fast::FixedState;
+
 use motif_core::geometry::{Point3, add, dist2, dot, scale, sub};
 use motif_core::mesh::{TriMesh, UnionFind};
 
@@ -57,25 +59,46 @@ pub(crate) fn stitch(
         by_voxel[fill[v as usize] as usize] = f as u32;
         fill[v as usize] += 1;
     }
-    // Input voxels touched by each vertex's triangles (sorted, unique).
-    let mut vertex_voxels: Vec<Vec<u32>> = vec![Vec::new(); mesh.positions.len()];
-    for (f, t) in mesh.triangles.iter().enumerate() {
+    // Input voxels touched by each vertex's triangles (sorted, unique), as CSR rows: a counting
+    // pass over the corners, then each (short) row sorted and deduplicated in place.
+    let num_in_vertices = mesh.positions.len();
+    let mut vertex_start = vec![0u32; num_in_vertices + 1];
+    for t in &mesh.triangles {
         for &v in t {
-            let list = &mut vertex_voxels[v as usize];
-            if !list.contains(&tri_voxel[f]) {
-                list.push(tri_voxel[f]);
-            }
+            vertex_start[v as usize + 1] += 1;
         }
     }
-    for l in &mut vertex_voxels {
-        l.sort_unstable();
+    for v in 0..num_in_vertices {
+        vertex_start[v + 1] += vertex_start[v];
     }
+    let mut fill = vertex_start.clone();
+    let mut corner_voxel = vec![0u32; 3 * mesh.triangles.len()];
+    for (f, t) in mesh.triangles.iter().enumerate() {
+        for &v in t {
+            corner_voxel[fill[v as usize] as usize] = tri_voxel[f];
+            fill[v as usize] += 1;
+        }
+    }
+    let mut vertex_voxel: Vec<u32> = Vec::with_capacity(corner_voxel.len());
+    let mut row_start = vec![0u32; num_in_vertices + 1];
+    for v in 0..num_in_vertices {
+        let row = &mut corner_voxel[vertex_start[v] as usize..vertex_start[v + 1] as usize];
+        row.sort_unstable();
+        let first = vertex_voxel.len();
+        for &s in row.iter() {
+            if vertex_voxel.len() == first || vertex_voxel.last() != Some(&s) {
+                vertex_voxel.push(s);
+            }
+        }
+        row_start[v + 1] = vertex_voxel.len() as u32;
+    }
+    let voxels_of =
+        |v: u32| &vertex_voxel[row_start[v as usize] as usize..row_start[v as usize + 1] as usize];
 
     let out = VoxelGrid { origin: [0.0; 3], pitch: [1.0; 3], dims: out_dims };
     // Output vertex of (input vertex, label): one table of #V entries per label in use.
     const UNSET: u32 = u32::MAX;
-    let num_in_vertices = mesh.positions.len();
-    let mut label_slot: HashMap<[i32; 3], usize> = HashMap::new();
+    let mut label_slot: HashMap<[i32; 3], usize, FixedState> = HashMap::default();
     let mut vertex_of: Vec<Vec<u32>> = Vec::new();
     let mut positions: Vec<Point3> = Vec::new();
     let mut origin_of: Vec<(u32, [i32; 3])> = Vec::new();
@@ -107,50 +130,33 @@ pub(crate) fn stitch(
         }
     }
 
-    // Seam welding of straddling vertices.
+    // Seam welding of straddling vertices: copies of a vertex from different copies of the
+    // input that coincide and share two output voxels.
     let mut uf = UnionFind::new(positions.len());
     let mut welded = 0;
     if weld_tolerance > 0.0 {
-        let cell = weld_tolerance;
-        let key = |p: Point3| p.map(|c| (c / cell).floor() as i64);
-        let mut buckets: HashMap<[i64; 3], Vec<u32>> = HashMap::new();
-        let footprint = |i: usize| -> Vec<[i64; 3]> {
-            let (v, k) = origin_of[i];
-            vertex_voxels[v as usize]
+        // Output voxels that both copies would have used the vertex in (input voxels shifted by
+        // each copy's step vector).
+        let common = |i: usize, j: usize| -> usize {
+            let ((vi, ki), (vj, kj)) = (origin_of[i], origin_of[j]);
+            let shifted = |s: u32, k: [i32; 3]| {
+                let c = grid_in.coords(s as usize);
+                [0, 1, 2].map(|a| c[a] as i64 + k[a] as i64)
+            };
+            voxels_of(vi)
                 .iter()
-                .map(|&s| {
-                    let c = grid_in.coords(s as usize);
-                    [c[0] as i64 + k[0] as i64, c[1] as i64 + k[1] as i64, c[2] as i64 + k[2] as i64]
+                .filter(|&&s| {
+                    let a = shifted(s, ki);
+                    voxels_of(vj).iter().any(|&t| shifted(t, kj) == a)
                 })
-                .collect()
+                .count()
         };
-        for i in 0..positions.len() {
-            let (v, k) = origin_of[i];
-            if vertex_voxels[v as usize].len() < 2 {
-                continue;
+        let straddles = |i: usize| voxels_of(origin_of[i].0).len() >= 2;
+        for_each_earlier_within(&positions, straddles, weld_tolerance, |i, j| {
+            if origin_of[j].1 != origin_of[i].1 && common(i, j) >= 2 && uf.union(i, j) {
+                welded += 1;
             }
-            let kc = key(positions[i]);
-            let fi = footprint(i);
-            for dz in -1..=1 {
-                for dy in -1..=1 {
-                    for dx in -1..=1 {
-                        let Some(list) = buckets.get(&[kc[0] + dx, kc[1] + dy, kc[2] + dz]) else { continue };
-                        for &j in list {
-                            let j = j as usize;
-                            if origin_of[j].1 == k || dist2(positions[i], positions[j]) > cell * cell {
-                                continue;
-                            }
-                            let fj = footprint(j);
-                            let common = fi.iter().filter(|c| fj.contains(c)).count();
-                            if common >= 2 && uf.union(i, j) {
-                                welded += 1;
-                            }
-                        }
-                    }
-                }
-            }
-            buckets.entry(kc).or_default().push(i as u32);
-        }
+        });
     }
     // Compact: each class keeps its first vertex's position.
     let mut remap = vec![u32::MAX; positions.len()];
@@ -180,6 +186,51 @@ pub(crate) fn stitch(
     Stitched { mesh, triangle_voxels, welded }
 }
 
+/// Calls `visit(i, j)` for every pair of points `j < i`, both `active`, at most `tol` apart
+/// (`tol > 0`), in increasing `i`, and for one `i` in a fixed order of `j`. A hash grid of cells
+/// three tolerances wide: a point's neighbours within `tol` lie in its own cell and, per axis, in
+/// at most the one neighbouring cell it is within 1.5 `tol` of (8 cells at most instead of 27,
+/// with a margin against rounding at cell borders).
+fn for_each_earlier_within(
+    points: &[Point3],
+    active: impl Fn(usize) -> bool,
+    tol: f64,
+    mut visit: impl FnMut(usize, usize),
+) {
+    let cell = 3.0 * tol;
+    let key = |p: Point3| p.map(|c| (c / cell).floor() as i64);
+    let mut buckets: HashMap<[i64; 3], Vec<u32>, FixedState> = HashMap::default();
+    for (i, &p) in points.iter().enumerate() {
+        if !active(i) {
+            continue;
+        }
+        let kc = key(p);
+        let side: [i64; 3] = std::array::from_fn(|a| {
+            let lo = kc[a] as f64 * cell;
+            if p[a] - lo < 1.5 * tol {
+                -1
+            } else if lo + cell - p[a] < 1.5 * tol {
+                1
+            } else {
+                0
+            }
+        });
+        for mask in 0..8usize {
+            if (0..3).any(|a| mask & (1 << a) != 0 && side[a] == 0) {
+                continue;
+            }
+            let c: [i64; 3] = std::array::from_fn(|a| kc[a] + if mask & (1 << a) != 0 { side[a] } else { 0 });
+            let Some(list) = buckets.get(&c) else { continue };
+            for &j in list {
+                if dist2(p, points[j as usize]) <= tol * tol {
+                    visit(i, j as usize);
+                }
+            }
+        }
+        buckets.entry(kc).or_default().push(i as u32);
+    }
+}
+
 /// Removes T-junctions along seams: where one copy's boundary edge has another copy's boundary
 /// vertex on it (within `tol`), the triangle is split at that vertex. This happens when the two
 /// sides of a seam were tessellated differently, e.g. pieces of a large triangle cut at voxel
@@ -189,14 +240,7 @@ pub(crate) fn stitch(
 fn split_t_junctions(mesh: &mut TriMesh, triangle_voxels: &mut Vec<u32>, tol: f64) {
     for _round in 0..8 {
         // Boundary edges as (triangle, corner k): the edge from corner k to corner k + 1.
-        let mut keys: Vec<(u64, u32, u8)> = Vec::with_capacity(3 * mesh.triangles.len());
-        for (f, t) in mesh.triangles.iter().enumerate() {
-            for k in 0..3 {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                keys.push((((a.min(b) as u64) << 32) | a.max(b) as u64, f as u32, k as u8));
-            }
-        }
-        keys.sort_unstable();
+        let keys = edges_by_key(&mesh.triangles, mesh.positions.len());
         let mut boundary: Vec<(u32, u8)> = Vec::new();
         let mut i = 0;
         while i < keys.len() {
@@ -239,7 +283,7 @@ fn split_t_junctions(mesh: &mut TriMesh, triangle_voxels: &mut Vec<u32>, tol: f6
             (vs, coord)
         });
         // For every boundary edge, the boundary vertices strictly inside it, by parameter.
-        let mut splits: HashMap<u32, Vec<(u8, Vec<u32>)>> = HashMap::new();
+        let mut splits: HashMap<u32, Vec<(u8, Vec<u32>)>, FixedState> = HashMap::default();
         let mut on: Vec<(f64, u32)> = Vec::new();
         for &(f, k) in &boundary {
             let (a, b) = edge(f, k);
@@ -313,29 +357,56 @@ fn split_t_junctions(mesh: &mut TriMesh, triangle_voxels: &mut Vec<u32>, tol: f6
     }
 }
 
+/// Every edge of `triangles` as (key, triangle, corner k), the edge running from corner k to
+/// corner k + 1 and its key `min << 32 | max` of its vertices, sorted by (key, triangle, corner):
+/// equal keys (one edge's uses) are adjacent. Bucketed by the smaller vertex (a counting pass),
+/// then each short bucket sorted, which is several times faster than one sort of all edges.
+fn edges_by_key(triangles: &[[u32; 3]], num_vertices: usize) -> Vec<(u64, u32, u8)> {
+    let mut start = vec![0u32; num_vertices + 1];
+    for t in triangles {
+        for k in 0..3 {
+            start[t[k].min(t[(k + 1) % 3]) as usize + 1] += 1;
+        }
+    }
+    for v in 0..num_vertices {
+        start[v + 1] += start[v];
+    }
+    let mut fill = start.clone();
+    let mut keys = vec![(0u64, 0u32, 0u8); 3 * triangles.len()];
+    for (f, t) in triangles.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            let slot = &mut fill[a.min(b) as usize];
+            keys[*slot as usize] = (((a.min(b) as u64) << 32) | a.max(b) as u64, f as u32, k as u8);
+            *slot += 1;
+        }
+    }
+    for v in 0..num_vertices {
+        keys[start[v] as usize..start[v + 1] as usize].sort_unstable();
+    }
+    keys
+}
+
 /// Connected components (through shared vertices, counting only components with triangles) and
-/// boundary edges (used by one triangle) of a mesh. Sort-based, several times faster than
+/// boundary edges (used by one triangle) of a mesh. On [`edges_by_key`], several times faster than
 /// [`TriMesh::edge_stats`] and [`TriMesh::components`], which hash every edge; this runs on every
 /// interactive solve.
 pub(crate) fn mesh_stats(mesh: &TriMesh) -> (usize, usize) {
-    let mut keys: Vec<u64> = Vec::with_capacity(3 * mesh.triangles.len());
     let mut uf = UnionFind::new(mesh.positions.len());
     for t in &mesh.triangles {
-        for k in 0..3 {
-            let (a, b) = (t[k], t[(k + 1) % 3]);
-            if a != b {
-                keys.push(((a.min(b) as u64) << 32) | a.max(b) as u64);
-            }
-        }
         uf.union(t[0] as usize, t[1] as usize);
         uf.union(t[0] as usize, t[2] as usize);
     }
-    keys.sort_unstable();
+    let keys = edges_by_key(&mesh.triangles, mesh.positions.len());
     let mut boundary = 0;
     let mut i = 0;
     while i < keys.len() {
+        if keys[i].0 >> 32 == keys[i].0 & 0xffff_ffff {
+            i += 1; // a degenerate edge (a == b)
+            continue;
+        }
         let mut j = i + 1;
-        while j < keys.len() && keys[j] == keys[i] {
+        while j < keys.len() && keys[j].0 == keys[i].0 {
             j += 1;
         }
         if j - i == 1 {
@@ -358,6 +429,64 @@ pub(crate) fn mesh_stats(mesh: &TriMesh) -> (usize, usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A small deterministic generator (SplitMix64) for the oracle tests.
+    fn uniform(state: &mut u64) -> f64 {
+        *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = *state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    #[test]
+    fn pairs_within_tolerance_match_brute_force() {
+        // Clusters of points scattered around cell borders (multiples of 3 tol) and exactly on
+        // them, at distances just under and over the tolerance, plus negative coordinates.
+        let tol = 0.01;
+        let mut state = 7u64;
+        let mut points: Vec<Point3> = Vec::new();
+        for c in 0..300 {
+            let centre: Point3 =
+                std::array::from_fn(|_| ((uniform(&mut state) * 20.0).floor() - 10.0) * 3.0 * tol);
+            let n = 1 + c % 4;
+            for _ in 0..n {
+                let r = tol * (0.5 + uniform(&mut state));
+                points.push(std::array::from_fn(|a| centre[a] + (uniform(&mut state) - 0.5) * r));
+            }
+        }
+        points.push([0.0; 3]);
+        points.push([tol * 0.999, 0.0, 0.0]);
+        points.push([0.0, -tol * 0.999, 3.0 * tol]);
+        let active = |i: usize| i % 7 != 3;
+        let mut found = Vec::new();
+        for_each_earlier_within(&points, active, tol, |i, j| found.push((i, j)));
+        let mut expected = Vec::new();
+        for i in 0..points.len() {
+            for j in 0..i {
+                if active(i) && active(j) && dist2(points[i], points[j]) <= tol * tol {
+                    expected.push((i, j));
+                }
+            }
+        }
+        found.sort_unstable();
+        assert!(expected.len() > 300, "the test scatters many close pairs: {}", expected.len());
+        assert_eq!(found, expected);
+    }
+
+    #[test]
+    fn edges_by_key_equal_one_global_sort() {
+        let m = motif_core::procedural::generate("facade", 0).unwrap().mesh;
+        let mut expected: Vec<(u64, u32, u8)> = Vec::new();
+        for (f, t) in m.triangles.iter().enumerate() {
+            for k in 0..3 {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                expected.push((((a.min(b) as u64) << 32) | a.max(b) as u64, f as u32, k as u8));
+            }
+        }
+        expected.sort_unstable();
+        assert_eq!(edges_by_key(&m.triangles, m.positions.len()), expected);
+    }
 
     #[test]
     fn stats_agree_with_the_mesh_methods() {
