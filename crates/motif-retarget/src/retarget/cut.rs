@@ -12,6 +12,8 @@
 
 use std::collections::HashMap;
 
+use foldhash::fast::FixedState;
+
 use motif_core::geometry::{Point3, lerp};
 use motif_core::mesh::TriMesh;
 
@@ -54,7 +56,7 @@ pub(crate) fn cut_at_voxel_faces(mesh: &TriMesh, lattice: &Lattice, grid: &Voxel
     let mut positions = mesh.positions.clone();
     let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(mesh.triangles.len());
     // Edge crossings shared between triangles: (a, b, axis, plane) → vertex.
-    let mut edge_points: HashMap<(u32, u32, u8, i64), u32> = HashMap::new();
+    let mut edge_points: HashMap<(u32, u32, u8, i64), u32, FixedState> = HashMap::default();
     let eps: [f64; 3] = std::array::from_fn(|a| 1e-9 * grid.pitch[a]);
     // The interior grid plane along `axis` that canonical point `c` lies on, if any.
     let plane_of = |c: Point3, axis: usize| -> Option<i64> {
@@ -64,7 +66,7 @@ pub(crate) fn cut_at_voxel_faces(mesh: &TriMesh, lattice: &Lattice, grid: &Voxel
     };
     // Crossings of two planes inside one triangle, shared by the pieces of that triangle:
     // ((axis, plane) of the earlier cut, plane of the current cut along `axis`) → vertex.
-    let mut inside_points: HashMap<((usize, i64), i64), u32> = HashMap::new();
+    let mut inside_points: HashMap<((usize, i64), i64), u32, FixedState> = HashMap::default();
     for t in &mesh.triangles {
         inside_points.clear();
         let mut pieces: Vec<Vec<PolyVertex>> =

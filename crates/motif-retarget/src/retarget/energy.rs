@@ -112,7 +112,7 @@ impl DistTable {
 
 /// Cache of d_H between input voxels, keyed by the ordered pair of linear indices; filled on
 /// demand and kept across solves of one session.
-pub(crate) type DistanceCache = HashMap<(u32, u32), f64>;
+pub(crate) type DistanceCache = HashMap<(u32, u32), f64, foldhash::fast::FixedState>;
 
 /// Fills `cache` with every d_H that labels of `labels` can ask for and builds the lookup table.
 /// Returns the table and the number of distances computed now.

@@ -519,7 +519,7 @@ impl RetargetSession {
             grid,
             tri_voxel,
             descriptors,
-            cache: DistanceCache::new(),
+            cache: DistanceCache::default(),
             precompute: StageTimings { voxelize_ms, sampling_ms, descriptors_ms, ..Default::default() },
             precompute_ms: t0.elapsed().as_secs_f64() * 1e3,
         })
