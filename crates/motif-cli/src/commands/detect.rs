@@ -121,7 +121,7 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             "{}: {} classes ({} instances) from {} points, ε = {:.4}, {} features, {} in {:.2} s",
             a.input.display(),
             detection.result.classes.len(),
-            if per.is_empty() { "none".to_string() } else { per.join(" + ") },
+            if per.is_empty() { "no".to_string() } else { per.join(" + ") },
             r.input_points,
             r.epsilon,
             r.features,
