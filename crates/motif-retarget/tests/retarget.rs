@@ -812,3 +812,38 @@ fn detected_offsets_retarget_the_shelf_and_reuse_the_features() {
         assert_eq!(r.stages.sampling_ms, 0.0, "features are reused");
     }
 }
+
+#[test]
+fn infinite_seams_are_counted_exactly_when_the_energy_is_infinite() {
+    // The generated examples with their true pitch stitch seam-consistently (finite energy, no
+    // infinite seam); offsets that do not match the cells (0.55 × and 1.3 × the pitch) leave the
+    // solver seams where one copy's geometry meets another copy's empty voxel.
+    let mut infinite = 0;
+    for name in ["shelf", "fence", "facade"] {
+        let ex = generate(name, 0).unwrap();
+        let pitch = ex.structure.cell_pitch.clone();
+        let steps = if pitch.len() >= 2 { [1, 1, 0] } else { [2, 0, 0] };
+        let r = run(&ex.mesh, &pitch, steps, RetargetMethod::Offsets).report;
+        assert!(
+            r.energy.is_finite() && r.infinite_seams == 0,
+            "{name}: {} with {} infinite seams",
+            r.energy,
+            r.infinite_seams
+        );
+        for factor in [0.55, 1.3] {
+            let wrong: Vec<Point3> = pitch.iter().map(|v| scale(*v, factor)).collect();
+            let r = run(&ex.mesh, &wrong, steps, RetargetMethod::Offsets).report;
+            assert_eq!(
+                r.energy.is_infinite(),
+                r.infinite_seams > 0,
+                "{name} × {factor}: energy {}, {} infinite of {} seams",
+                r.energy,
+                r.infinite_seams,
+                r.seams
+            );
+            assert!(r.infinite_seams <= r.seams);
+            infinite += usize::from(r.infinite_seams > 0);
+        }
+    }
+    assert!(infinite > 0, "some misaligned offsets give infinite seams");
+}

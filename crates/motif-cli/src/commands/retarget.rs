@@ -196,6 +196,18 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             mesh.num_vertices(),
             mesh.num_triangles()
         );
+        if r.infinite_seams > 0 {
+            eprintln!(
+                "warning: no seam-consistent stitching was found for these steps (energy +inf): at {} of \
+                 {} seams one copy's geometry meets another copy's empty space; the output has {} open \
+                 boundary edges (the input has {}). Other steps may stitch cleanly; --preview PNG shows \
+                 the result",
+                r.infinite_seams,
+                r.seams,
+                r.output_boundary_edges,
+                mesh.edge_stats().boundary
+            );
+        }
         eprintln!("wrote {}", a.output.display());
         if let Some(p) = &a.preview {
             eprintln!("wrote {}", p.display());

@@ -241,6 +241,9 @@ pub(crate) struct Solved {
     pub edges: usize,
     /// Edges whose voxels got different labels.
     pub seams: usize,
+    /// Seams of infinite cost: one copy's geometry meets another copy's empty space (or the
+    /// outside of the input) there, so the stitched output is open along them.
+    pub infinite_seams: usize,
     /// Distinct labels used.
     pub labels_used: usize,
     /// d_H evaluations done for this solve (the rest came from the cache).
@@ -342,8 +345,16 @@ pub(crate) fn solve(
     );
     let init = initial_labels(grid_in.dims, out_dims, steps, &labels);
     let result = AlphaExpansion::new().solve(&energy, &init, options)?;
-    let seams =
-        edges.iter().filter(|[p, q]| result.labels[*p as usize] != result.labels[*q as usize]).count();
+    let (mut seams, mut infinite_seams) = (0, 0);
+    for &[p, q] in &edges {
+        let (lp, lq) = (result.labels[p as usize] as usize, result.labels[q as usize] as usize);
+        if lp != lq {
+            seams += 1;
+            if (term(p as usize, lp, lq) + term(q as usize, lp, lq)).is_infinite() {
+                infinite_seams += 1;
+            }
+        }
+    }
     let mut used = vec![false; labels.len()];
     for &l in &result.labels {
         used[l as usize] = true;
@@ -352,6 +363,7 @@ pub(crate) fn solve(
         labels: result.labels.iter().map(|&l| labels.labels[l as usize]).collect(),
         edges: edges.len(),
         seams,
+        infinite_seams,
         labels_used: used.iter().filter(|u| **u).count(),
         result,
         distances_computed,

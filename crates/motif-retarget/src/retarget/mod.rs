@@ -331,6 +331,11 @@ pub struct RetargetReport {
     pub termination: Termination,
     /// Edges whose voxels copy from different copies.
     pub seams: usize,
+    /// Seams of infinite cost (eq. 4.4: one copy's geometry against another's empty voxel).
+    /// Non-zero exactly when `energy` is +∞: no seam-consistent labelling was found, and the
+    /// output is open along these seams.
+    #[serde(default)]
+    pub infinite_seams: usize,
     /// Distinct labels in the solution.
     pub labels_used: usize,
     /// Time of the graph cut, ms (Fig. 4.8's figure).
@@ -670,6 +675,7 @@ impl RetargetSession {
             moves: r.moves,
             termination: r.termination,
             seams: solved.seams,
+            infinite_seams: solved.infinite_seams,
             labels_used: solved.labels_used,
             graph_cut_ms: r.elapsed_ms,
             solve_ms,
