@@ -331,7 +331,8 @@ pub struct RetargetReport {
     pub termination: Termination,
     /// Edges whose voxels copy from different copies.
     pub seams: usize,
-    /// Seams of infinite cost (eq. 4.4: one copy's geometry against another's empty voxel).
+    /// Seams of infinite cost (eq. 4.4: one copy's geometry against another's empty voxel, or
+    /// against the outside of the input, which counts as empty).
     /// Non-zero exactly when `energy` is +∞: no seam-consistent labelling was found, and the
     /// output is open along these seams.
     #[serde(default)]
