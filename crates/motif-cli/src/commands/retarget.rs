@@ -199,11 +199,10 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         if r.infinite_seams > 0 {
             eprintln!(
                 "warning: no seam-consistent stitching was found for these steps (energy +inf): at {} of \
-                 {} seams one copy's geometry meets empty space in another copy (an empty voxel of the input, \
-                 or beyond its end when the input is only a few cells long along a grown direction); the \
-                 output has {} open \
-                 boundary edges (the input has {}). Other steps may stitch cleanly; --preview PNG shows \
-                 the result",
+                 {} seams one copy's geometry meets empty space in another copy (an empty voxel of the \
+                 input, or beyond its end when the input is only a few cells long along a grown \
+                 direction); the output has {} open boundary edges (the input has {}). Other steps may \
+                 stitch cleanly; --preview PNG shows the result",
                 r.infinite_seams,
                 r.seams,
                 r.output_boundary_edges,

@@ -242,7 +242,7 @@ pub(crate) struct Solved {
     /// Edges whose voxels got different labels.
     pub seams: usize,
     /// Seams of infinite cost: one copy's geometry meets another copy's empty space (or the
-    /// outside of the input) there, so the stitched output is open along them.
+    /// outside of the input) there, so the stitched output may be open along them.
     pub infinite_seams: usize,
     /// Distinct labels used.
     pub labels_used: usize,

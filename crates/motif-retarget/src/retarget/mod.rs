@@ -334,7 +334,7 @@ pub struct RetargetReport {
     /// Seams of infinite cost (eq. 4.4: one copy's geometry against another's empty voxel, or
     /// against the outside of the input, which counts as empty).
     /// Non-zero exactly when `energy` is +∞: no seam-consistent labelling was found, and the
-    /// output is open along these seams.
+    /// output may be open along these seams.
     #[serde(default)]
     pub infinite_seams: usize,
     /// Distinct labels in the solution.
