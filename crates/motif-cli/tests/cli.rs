@@ -372,6 +372,9 @@ fn bench_retarget_reports_fig_4_8_figures() {
         assert!(o["nodes"].as_u64().unwrap() < dense["nodes"].as_u64().unwrap(), "{m}");
         assert!(o["labels"].as_u64().unwrap() < dense["labels"].as_u64().unwrap(), "{m}");
         assert!(m["principal_offsets"].as_u64().unwrap() >= 1, "{m}");
+        // The generated models stitch seam-consistently with their detected offsets.
+        assert_eq!(o["infinite_seams"].as_u64(), Some(0), "{m}");
+        assert!(o["seams"].as_u64().unwrap() > 0, "{m}");
         // One run per figure: the step's stages happen within the timed step.
         for f in [o, dense] {
             let stages: Vec<f64> =
