@@ -767,3 +767,29 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
     assert!(!o.status.success() && stderr(&o).contains("some"), "{}", stderr(&o));
     assert!(!dir.path().join("r7.json").exists());
 }
+
+#[test]
+fn retarget_with_infinite_seams_warns_and_suggests_steps_that_stitch_cleanly() {
+    // A shelf one row high: its voxel grid is two cells high (the row and the closing top board),
+    // so growing it in height puts every seam against the outside of the input, while growing it
+    // in width stitches cleanly.
+    let d = tmp();
+    let shelf = motif_core::procedural::shelf(&motif_core::procedural::ShelfOptions {
+        cells: [4, 1],
+        ..Default::default()
+    })
+    .unwrap()
+    .mesh;
+    motif_core::io::write_mesh(&d.path().join("low.obj"), &shelf).unwrap();
+    let o = motif(&["retarget", "low.obj", "--steps", "0,1", "-o", "tall.obj", "--json", "r.json"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.path().join("r.json")).unwrap()).unwrap();
+    assert!(r["retarget"]["infinite_seams"].as_u64().unwrap() > 0);
+    assert_eq!(r["clean_alternatives"], serde_json::json!([[1, 0, 0]]));
+    assert!(stderr(&o).contains("--steps 1,0 stitches cleanly"), "{}", stderr(&o));
+    // The suggestion holds, and a clean stitching neither warns nor suggests.
+    let r = json_of(&motif(&["retarget", "low.obj", "--steps", "1,0", "-o", "wide.obj", "--json"], d.path()));
+    assert_eq!(r["retarget"]["infinite_seams"].as_u64(), Some(0));
+    assert!(r.get("clean_alternatives").is_none(), "{r}");
+}

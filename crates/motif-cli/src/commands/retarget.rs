@@ -27,8 +27,43 @@ struct Report<'a> {
     offsets: &'a OffsetAnalysis,
     retarget: Option<RetargetReport>,
     plain_resize: Option<[f64; 3]>,
+    /// When the stitching has seams of infinite cost: the nearby steps that stitch without any
+    /// (see [`clean_alternatives`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    clean_alternatives: Option<Vec<[i32; 3]>>,
     analysis_ms: f64,
     total_ms: f64,
+}
+
+/// Steps near `steps` to suggest when `steps` stitch with seams of infinite cost: each requested
+/// direction alone (when several are), and a single requested count moved to every other
+/// principal offset (the heat sink of `../shared/data` grown by two along its 12.5 mm screw-hole
+/// spacing has infinite seams, by two fins along its 3.8 mm offset none). Each candidate is one
+/// more solve on the session's descriptors (milliseconds); those with no infinite seam are
+/// returned, in this order.
+fn clean_alternatives(session: &mut RetargetSession, steps: [i32; 3], num_offsets: usize) -> Vec<[i32; 3]> {
+    let requested: Vec<usize> = (0..3).filter(|&k| steps[k] != 0).collect();
+    let mut candidates: Vec<[i32; 3]> = Vec::new();
+    if requested.len() > 1 {
+        for &k in &requested {
+            let mut s = [0; 3];
+            s[k] = steps[k];
+            candidates.push(s);
+        }
+    }
+    if let [k] = requested[..] {
+        for j in (0..num_offsets.min(3)).filter(|&j| j != k) {
+            let mut s = [0; 3];
+            s[j] = steps[k];
+            candidates.push(s);
+        }
+    }
+    candidates
+        .into_iter()
+        .filter(|&s| {
+            session.retarget(s, &motif_core::progress::NoProgress).is_ok_and(|r| r.report.infinite_seams == 0)
+        })
+        .collect()
 }
 
 /// Extent of the vertices along a unit direction.
@@ -125,6 +160,7 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             offsets: &analysis,
             retarget: None,
             plain_resize: Some(s),
+            clean_alternatives: None,
             analysis_ms,
             total_ms: ms_since(t0),
         };
@@ -171,8 +207,10 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         },
         ..Default::default()
     };
-    let res = RetargetSession::with_features(&mesh, &features, &principal, &options, &bar)?
-        .retarget(steps, &bar)?;
+    let mut session = RetargetSession::with_features(&mesh, &features, &principal, &options, &bar)?;
+    let res = session.retarget(steps, &bar)?;
+    let alternatives =
+        (res.report.infinite_seams > 0).then(|| clean_alternatives(&mut session, steps, principal.len()));
     motif_core::io::write(&a.output, &Model::from_mesh(&res.mesh), &WriteOptions::default())?;
     if let Some(p) = &a.preview {
         let (view, up) = preview_camera(&mesh, &principal);
@@ -197,12 +235,31 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             mesh.num_triangles()
         );
         if r.infinite_seams > 0 {
+            let dims = principal.len().clamp(1, 3);
+            let others = match alternatives.as_deref() {
+                Some([]) | None => {
+                    "Steps along one offset near these do not stitch cleanly either".to_string()
+                }
+                Some(list) => {
+                    let names: Vec<String> = list
+                        .iter()
+                        .map(|s| {
+                            format!(
+                                "--steps {}",
+                                s[..dims].iter().map(i32::to_string).collect::<Vec<_>>().join(",")
+                            )
+                        })
+                        .collect();
+                    let verb = if names.len() == 1 { "stitches" } else { "stitch" };
+                    format!("{} {verb} cleanly", names.join(" and "))
+                }
+            };
             eprintln!(
                 "warning: no seam-consistent stitching was found for these steps (energy +inf): at {} of \
                  {} seams one copy's geometry meets empty space in another copy (an empty voxel of the \
                  input, or beyond its end when the input is only a few cells long along a grown \
-                 direction); the output has {} open boundary edges (the input has {}). Other steps may \
-                 stitch cleanly; --preview PNG shows the result",
+                 direction); the output has {} open boundary edges (the input has {}). {others}; \
+                 --preview PNG shows the result",
                 r.infinite_seams,
                 r.seams,
                 r.output_boundary_edges,
@@ -222,6 +279,7 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         offsets: &analysis,
         retarget: Some(res.report.clone()),
         plain_resize: None,
+        clean_alternatives: alternatives,
         analysis_ms,
         total_ms: ms_since(t0),
     };
