@@ -468,6 +468,8 @@ fn retarget_adds_shelf_cells_and_refuses_models_without_repetition() {
     let o = motif(&["retarget", "gear.obj", "--steps", "1", "-o", "g.obj"], d.path());
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("no repetition"), "{}", stderr(&o));
+    // The evidence is the verdict's own reason, with the histogram's figures and where to look.
+    assert!(stderr(&o).contains("histogram peak") && stderr(&o).contains("--plot PNG"), "{}", stderr(&o));
     assert!(!d.path().join("g.obj").exists());
     let o =
         motif(&["retarget", "gear.obj", "--target-size", "3,3,1", "--plain-resize", "-o", "g.obj"], d.path());

@@ -25,13 +25,14 @@ pub fn offsets(a: OffsetsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     }
     if !crate::output::json_on_stdout(&a.json.json) && !g.quiet {
         println!("{}", a.mesh.display());
+        // The verdict's own reasons (the discrete-period test decides, not the peak's share).
         match an.repetition.kind {
-            Repetition::Repetitive => println!("  repetitive: {} principal offsets", an.principal.len()),
-            Repetition::NoRepetition => println!(
-                "  no repetition found: the strongest offset peak holds {:.1}% of the offsets (a uniform spread would give {:.1}%); a plain resize is all that is possible",
-                100.0 * an.repetition.top_peak_share,
-                100.0 * an.repetition.uniform_share
-            ),
+            Repetition::Repetitive => {
+                println!("  {} principal offsets; {}", an.principal.len(), an.repetition.summary)
+            }
+            Repetition::NoRepetition => {
+                println!("  {}; a plain resize is all that is possible", an.repetition.summary)
+            }
         }
         for (i, p) in an.principal.iter().enumerate() {
             println!(

@@ -123,10 +123,9 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
 
     if analysis.repetition.kind == Repetition::NoRepetition || principal.is_empty() {
         let evidence = format!(
-            "{}: no repetition found: the strongest offset peak holds {:.1}% of the offsets, a uniform spread would give {:.1}% (see `motif offsets {} --plot PNG`)",
+            "{}: {} (see `motif offsets {} --plot PNG`)",
             a.mesh.display(),
-            100.0 * analysis.repetition.top_peak_share,
-            100.0 * analysis.repetition.uniform_share,
+            analysis.repetition.summary,
             a.mesh.display()
         );
         let (true, Some(size)) = (a.plain_resize, target) else {
