@@ -716,6 +716,12 @@ pub struct RetargetArgs {
     /// Offsets (detected) or the dense baseline.
     #[arg(long, value_enum, default_value_t)]
     pub method: RetargetMethodArg,
+    /// Principal offsets to use instead of the detected ones, in model units: one to three
+    /// independent vectors X,Y,Z separated by ';' (e.g. '0.16,0,0;0,0,0.16'), for a pitch the user
+    /// knows and the detection misses or refuses (a brick of two studs per side). The detection
+    /// still runs for its features and report, but its repetition verdict is not applied.
+    #[arg(long, value_name = "X,Y,Z[;X,Y,Z...]", allow_hyphen_values = true)]
+    pub offsets: Option<String>,
     /// When the model has no repetition, scale it to --target-size instead of failing.
     #[arg(long)]
     pub plain_resize: bool,

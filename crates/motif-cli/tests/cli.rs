@@ -795,3 +795,55 @@ fn retarget_with_infinite_seams_warns_and_suggests_steps_that_stitch_cleanly() {
     assert_eq!(r["retarget"]["infinite_seams"].as_u64(), Some(0));
     assert!(r.get("clean_alternatives").is_none(), "{r}");
 }
+
+#[test]
+fn retarget_along_offsets_given_by_the_user() {
+    let d = tmp();
+    assert!(motif(&["example", "shelf", "shelf.obj", "--structure", "s.json"], d.path()).status.success());
+    let s: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.path().join("s.json")).unwrap()).unwrap();
+    let pitch: Vec<String> = s["cell_pitch"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| {
+            v.as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_f64().unwrap().to_string())
+                .collect::<Vec<_>>()
+                .join(",")
+        })
+        .collect();
+    let given = pitch.join(";");
+    // The generator's own pitch gives the detection's result (the detection snaps to it exactly).
+    let detected =
+        json_of(&motif(&["retarget", "shelf.obj", "--steps", "1,1", "-o", "a.obj", "--json"], d.path()));
+    let r = json_of(&motif(
+        &["retarget", "shelf.obj", "--offsets", &given, "--steps", "1,1", "-o", "b.obj", "--json"],
+        d.path(),
+    ));
+    for key in ["nodes", "labels", "output_vertices", "output_triangles", "output_components"] {
+        assert_eq!(r["retarget"][key], detected["retarget"][key], "{key}: {r} vs {detected}");
+    }
+    assert_eq!(r["principal_offsets"].as_array().unwrap().len(), 2);
+    // A model the detection refuses is retargeted along given offsets (the verdict is not applied).
+    assert!(motif(&["example", "gear", "gear.obj"], d.path()).status.success());
+    let o = motif(&["retarget", "gear.obj", "--steps", "1", "-o", "g0.obj"], d.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--offsets X,Y,Z"), "{}", stderr(&o));
+    let o =
+        motif(&["retarget", "gear.obj", "--offsets", "0.5,0,0", "--steps", "1", "-o", "g1.obj"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(d.path().join("g1.obj").exists());
+    // Bad vectors: a clear error naming the option, exit 2, no output.
+    for bad in
+        ["1,2", "0,0,0", "1,0,0;2,0,0", "1,0,0;0,1,0;1,1,0", "a,b,c", "1,0,0;0,1,0;0,0,1;1,1,1", "nan,0,0"]
+    {
+        let o =
+            motif(&["retarget", "shelf.obj", "--offsets", bad, "--steps", "1", "-o", "bad.obj"], d.path());
+        assert_eq!(o.status.code(), Some(2), "{bad}: {}", stderr(&o));
+        assert!(stderr(&o).contains("--offsets"), "{bad}: {}", stderr(&o));
+        assert!(!d.path().join("bad.obj").exists(), "{bad}");
+    }
+}

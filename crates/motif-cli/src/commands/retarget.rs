@@ -66,6 +66,49 @@ fn clean_alternatives(session: &mut RetargetSession, steps: [i32; 3], num_offset
         .collect()
 }
 
+/// Parses `--offsets`: one to three finite, non-zero, linearly independent vectors X,Y,Z
+/// separated by ';'.
+fn parse_offsets(text: &str) -> anyhow::Result<Vec<[f64; 3]>> {
+    use motif_core::geometry::{cross, norm};
+    let mut out: Vec<[f64; 3]> = Vec::new();
+    for (k, part) in text.split(';').enumerate() {
+        let v: Vec<f64> =
+            part.split(',').map(|x| x.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| {
+                bad_input(format!("--offsets: vector {} ('{part}') is not three numbers X,Y,Z", k + 1))
+            })?;
+        let [x, y, z] = v[..] else {
+            return Err(bad_input(format!(
+                "--offsets: vector {} ('{part}') needs three numbers X,Y,Z",
+                k + 1
+            )));
+        };
+        let o = [x, y, z];
+        if !o.iter().all(|c| c.is_finite()) || norm(o) == 0.0 {
+            return Err(bad_input(format!(
+                "--offsets: vector {} ('{part}') must be finite and non-zero",
+                k + 1
+            )));
+        }
+        out.push(o);
+    }
+    if out.len() > 3 {
+        return Err(bad_input(format!("--offsets takes one to three vectors, got {}", out.len())));
+    }
+    // Independence: the vectors span as many dimensions as there are (relative tolerance).
+    let unit: Vec<[f64; 3]> = out.iter().map(|v| normalize(*v).unwrap_or([0.0; 3])).collect();
+    let independent = match unit[..] {
+        [a, b] => norm(cross(a, b)) > 1e-3,
+        [a, b, c] => dot(cross(a, b), c).abs() > 1e-3,
+        _ => true,
+    };
+    if !independent {
+        return Err(bad_input(
+            "--offsets: the vectors must be linearly independent (no two parallel, three not in one plane)",
+        ));
+    }
+    Ok(out)
+}
+
 /// Extent of the vertices along a unit direction.
 fn extent_along(mesh: &TriMesh, d: [f64; 3]) -> f64 {
     let (lo, hi) = mesh.positions.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
@@ -106,6 +149,7 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     if let Some(p) = &a.preview {
         check_output(p, &[&a.mesh, &a.output], g.force)?;
     }
+    let given = a.offsets.as_deref().map(parse_offsets).transpose()?;
     let target = match &a.target_size {
         Some(v) if v.len() == 3 && v.iter().all(|x| *x > 0.0 && x.is_finite()) => Some([v[0], v[1], v[2]]),
         Some(_) => return Err(bad_input("--target-size needs three positive sizes X,Y,Z")),
@@ -118,10 +162,12 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let analysis = analyze_features(&features, &offset_options, &bar)?;
     let analysis_ms = ms_since(t0);
     // Copies are added at the +v end of each offset: orient them so growth goes along +x/+y/+z.
-    let principal: Vec<[f64; 3]> =
-        orient_offsets(&analysis.principal.iter().map(|p| p.offset_model).collect::<Vec<_>>());
+    let principal: Vec<[f64; 3]> = match &given {
+        Some(v) => orient_offsets(v),
+        None => orient_offsets(&analysis.principal.iter().map(|p| p.offset_model).collect::<Vec<_>>()),
+    };
 
-    if analysis.repetition.kind == Repetition::NoRepetition || principal.is_empty() {
+    if given.is_none() && (analysis.repetition.kind == Repetition::NoRepetition || principal.is_empty()) {
         let evidence = format!(
             "{}: {} (see `motif offsets {} --plot PNG`)",
             a.mesh.display(),
@@ -130,7 +176,7 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         );
         let (true, Some(size)) = (a.plain_resize, target) else {
             return Err(bad_input(format!(
-                "{evidence}; pass --plain-resize with --target-size to scale it instead"
+                "{evidence}; pass --plain-resize with --target-size to scale it instead, or --offsets X,Y,Z to retarget along a pitch you know"
             )));
         };
         let bb = mesh.aabb().ok_or_else(|| bad_input("empty mesh"))?;
