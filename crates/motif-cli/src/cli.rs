@@ -722,6 +722,10 @@ pub struct RetargetArgs {
     /// still runs for its features and report, but its repetition verdict is not applied.
     #[arg(long, value_name = "X,Y,Z[;X,Y,Z...]", allow_hyphen_values = true)]
     pub offsets: Option<String>,
+    /// Leave the openings of cuts that no copy continues open instead of capping them (caps are
+    /// only added when the input is closed).
+    #[arg(long)]
+    pub no_caps: bool,
     /// When the model has no repetition, scale it to --target-size instead of failing.
     #[arg(long)]
     pub plain_resize: bool,

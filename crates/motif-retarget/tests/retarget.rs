@@ -847,3 +847,50 @@ fn infinite_seams_are_counted_exactly_when_the_energy_is_infinite() {
     }
     assert!(infinite > 0, "some misaligned offsets give infinite seams");
 }
+
+/// Caps close what seams of infinite cost leave open, on the closed grid-like models of the
+/// shared data (`MOTIF_DATA` or `shared/data` above the crate), and change nothing else.
+#[test]
+fn caps_close_the_openings_of_real_models() {
+    let Some(dir) = motif_core::data::shared_data_dir(std::path::Path::new(env!("CARGO_MANIFEST_DIR")))
+    else {
+        println!("skipping: no shared data found (set MOTIF_DATA)");
+        return;
+    };
+    use motif_retarget::offsets::{OffsetOptions, analyze_offsets};
+    // (file, steps per detected principal offset, most open edges left with caps; None: fewer
+    // than without). Seed 1, as `motif retarget` uses by default.
+    let cases = [
+        ("man-made/oscad_example019_fence.stl", [3, 0, 0], Some(0)),
+        ("man-made/mcad_gridbeam_shelf.stl", [1, 1, 0], Some(10)),
+        ("man-made/pyb_xavier_heatsink.stl", [0, 2, 0], None),
+    ];
+    for (file, steps, most) in cases {
+        let mesh = motif_core::io::read_mesh(&dir.join(file)).expect("mesh loads");
+        assert_eq!(mesh.edge_stats().boundary, 0, "{file}: the input is closed");
+        let a = analyze_offsets(&mesh, &OffsetOptions { seed: 1, ..Default::default() }, &NoProgress)
+            .expect("offsets");
+        let principal = orient_offsets(&a.principal.iter().map(|p| p.offset_model).collect::<Vec<_>>());
+        let run = |cap_openings| {
+            let o = RetargetOptions { cap_openings, seed: 1, ..Default::default() };
+            retarget(&mesh, &principal, steps, &o, &NoProgress).expect("retarget")
+        };
+        let (capped, open) = (run(true), run(false));
+        let (c, o) = (&capped.report, &open.report);
+        println!(
+            "{file} {steps:?}: open edges {} -> {} ({} loops capped with {} triangles), infinite seams {}",
+            o.output_boundary_edges,
+            c.output_boundary_edges,
+            c.capped_loops,
+            c.cap_triangles,
+            c.infinite_seams
+        );
+        assert!(o.output_boundary_edges > 0, "{file}: the plain stitching leaves openings");
+        let bound = most.unwrap_or(o.output_boundary_edges - 1);
+        assert!(c.output_boundary_edges <= bound, "{file}: {} open edges left", c.output_boundary_edges);
+        assert_eq!(c.output_boundary_edges, capped.mesh.edge_stats().boundary);
+        assert_eq!((o.capped_loops, o.cap_triangles), (0, 0));
+        // The same copies, labels and energy: capping only adds faces.
+        assert_eq!((c.energy.to_bits(), c.seams), (o.energy.to_bits(), o.seams));
+    }
+}

@@ -250,6 +250,7 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             AssignmentArg::Centroid => TriangleAssignment::Centroid,
             AssignmentArg::Cut => TriangleAssignment::Cut,
         },
+        cap_openings: !a.no_caps,
         ..Default::default()
     };
     let mut session = RetargetSession::with_features(&mesh, &features, &principal, &options, &bar)?;

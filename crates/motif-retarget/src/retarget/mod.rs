@@ -18,7 +18,9 @@
 //!    of spacing 0.02 that supports the descriptors, as in 4.3).
 //! 4. **Label** every voxel of Ω with a step vector `k` — it copies input voxel `x − k`, shifted
 //!    by `Σ kᵢ vᵢ` — by minimising eq. 4.3 with alpha-expansion ([`mod@crate::alpha_expansion`]).
-//! 5. **Stitch** the copies' triangles and weld the seams; the result is in model units.
+//! 5. **Stitch** the copies' triangles and weld the seams; where no copy continues a part cut at
+//!    a voxel face, cap the opening (`caps`, when the input is closed; not in the thesis). The
+//!    result is in model units.
 //!
 //! [`RetargetSession`] does steps 1–3 once and solves for any number of step vectors
 //! (interactive resizing; Hausdorff distances are cached across solves); [`retarget`] and
@@ -79,6 +81,7 @@
 //! ```
 
 mod canonical;
+mod caps;
 mod cut;
 mod dense;
 mod energy;
@@ -197,6 +200,10 @@ pub struct RetargetOptions {
     /// Options of the alpha-expansion that minimises eq. 4.3 (cycles, label order, the finite
     /// stand-in for +∞ inside moves).
     pub graph_cut: AlphaExpansionOptions,
+    /// Cap the openings that cuts at voxel faces leave where no copy continues them (seams of
+    /// infinite cost), when the input is closed (see the `caps` module). Not in the thesis; default
+    /// true.
+    pub cap_openings: bool,
 }
 
 impl Default for RetargetOptions {
@@ -216,6 +223,7 @@ impl Default for RetargetOptions {
             max_labels: 10_000,
             force: false,
             graph_cut: AlphaExpansionOptions::default(),
+            cap_openings: true,
         }
     }
 }
@@ -355,8 +363,16 @@ pub struct RetargetReport {
     pub output_components: usize,
     /// Boundary edges of the output (cracks along seams show up here; closed inputs give 0).
     pub output_boundary_edges: usize,
-    /// Vertices merged by seam welding.
+    /// Vertices merged by seam welding (and, where openings are capped, coincident boundary
+    /// vertices of different copies merged first; see [`RetargetOptions::cap_openings`]).
     pub welded_vertices: usize,
+    /// Openings of cuts capped because no copy continued them (boundary loops closed; see
+    /// [`RetargetOptions::cap_openings`]).
+    #[serde(default)]
+    pub capped_loops: usize,
+    /// Triangles those caps added.
+    #[serde(default)]
+    pub cap_triangles: usize,
     /// `normalised_from_model`, row-major 4×4.
     pub normalised_from_model: Mat4,
     /// `canonical_from_normalised`, row-major 3×3 (identity for the dense baseline).
@@ -392,6 +408,8 @@ pub struct RetargetSession {
     cache: DistanceCache,
     precompute: StageTimings,
     precompute_ms: f64,
+    /// Whether the input has no open boundary edge (caps are only added then).
+    input_closed: bool,
 }
 
 impl RetargetSession {
@@ -445,6 +463,7 @@ impl RetargetSession {
         if mesh.triangles.is_empty() {
             return Err(RetargetError::NoFaces { vertices: mesh.positions.len() });
         }
+        let input_closed = options.cap_openings && stitch::mesh_stats(mesh).1 == 0;
         progress.start("voxelize", 0);
         let normalisation = canonical::normalisation_of(mesh)?;
         if let Some(f) = features {
@@ -528,6 +547,7 @@ impl RetargetSession {
             cache: DistanceCache::default(),
             precompute: StageTimings { voxelize_ms, sampling_ms, descriptors_ms, ..Default::default() },
             precompute_ms: t0.elapsed().as_secs_f64() * 1e3,
+            input_closed,
         })
     }
 
@@ -647,6 +667,7 @@ impl RetargetSession {
             &solved.labels,
             &self.lattice,
             weld_tolerance,
+            self.options.cap_openings && self.input_closed,
         );
         let stitch_ms = t_stitch.elapsed().as_secs_f64() * 1e3;
         progress.finish();
@@ -691,7 +712,9 @@ impl RetargetSession {
             output_triangles: stitched.mesh.triangles.len(),
             output_components: components,
             output_boundary_edges: boundary_edges,
-            welded_vertices: stitched.welded,
+            welded_vertices: stitched.welded + stitched.capped.merged,
+            capped_loops: stitched.capped.loops,
+            cap_triangles: stitched.capped.triangles,
             normalised_from_model: canonical::normalised_from_model(&self.lattice.normalisation),
             canonical_from_normalised: self.lattice.canonical_from_normalised,
         };

@@ -21,6 +21,7 @@ use motif_core::geometry::{Point3, add, dist2, dot, scale, sub};
 use motif_core::mesh::{TriMesh, UnionFind};
 
 use super::canonical::Lattice;
+use super::caps::{Capped, cap_openings};
 use super::voxels::VoxelGrid;
 
 /// The stitched mesh.
@@ -31,10 +32,13 @@ pub(crate) struct Stitched {
     pub triangle_voxels: Vec<u32>,
     /// Vertices merged by seam welding.
     pub welded: usize,
+    /// Openings capped ([`super::caps`]).
+    pub capped: Capped,
 }
 
 /// Assembles the output mesh. `labels` has one step vector per output voxel of the grid with
-/// `out_dims` voxels; `weld_tolerance` is in model units.
+/// `out_dims` voxels; `weld_tolerance` is in model units; with `cap`, the openings left on voxel
+/// faces are capped ([`super::caps`]).
 pub(crate) fn stitch(
     mesh: &TriMesh,
     tri_voxel: &[u32],
@@ -43,6 +47,7 @@ pub(crate) fn stitch(
     labels: &[[i32; 3]],
     lattice: &Lattice,
     weld_tolerance: f64,
+    cap: bool,
 ) -> Stitched {
     let n_in = grid_in.len();
     // Triangles per input voxel (CSR, triangle order kept).
@@ -180,10 +185,13 @@ pub(crate) fn stitch(
     }
     let mut mesh = TriMesh { positions: new_positions, triangles: kept };
     let mut triangle_voxels = kept_voxels;
-    if weld_tolerance > 0.0 {
-        split_t_junctions(&mut mesh, &mut triangle_voxels, weld_tolerance);
-    }
-    Stitched { mesh, triangle_voxels, welded }
+    let open = weld_tolerance <= 0.0 || split_t_junctions(&mut mesh, &mut triangle_voxels, weld_tolerance);
+    let capped = if cap && open {
+        cap_openings(&mut mesh, &mut triangle_voxels, grid_in, out_dims, lattice, weld_tolerance)
+    } else {
+        Capped::default()
+    };
+    Stitched { mesh, triangle_voxels, welded, capped }
 }
 
 /// Calls `visit(i, j)` for every pair of points `j < i`, both `active`, at most `tol` apart
@@ -191,7 +199,7 @@ pub(crate) fn stitch(
 /// three tolerances wide: a point's neighbours within `tol` lie in its own cell and, per axis, in
 /// at most the one neighbouring cell it is within 1.5 `tol` of (8 cells at most instead of 27,
 /// with a margin against rounding at cell borders).
-fn for_each_earlier_within(
+pub(super) fn for_each_earlier_within(
     points: &[Point3],
     active: impl Fn(usize) -> bool,
     tol: f64,
@@ -237,7 +245,9 @@ fn for_each_earlier_within(
 /// faces ([`super::TriangleAssignment::Cut`]). Iterates until no boundary edge has a vertex on it.
 /// Every boundary edge is examined, not only those on seams: a split only re-tessellates (the
 /// vertex lies on the edge within `tol`), so an input's own open boundary keeps its shape.
-fn split_t_junctions(mesh: &mut TriMesh, triangle_voxels: &mut Vec<u32>, tol: f64) {
+/// Returns whether the mesh was left with boundary edges (known without another pass when the
+/// last round found none).
+pub(super) fn split_t_junctions(mesh: &mut TriMesh, triangle_voxels: &mut Vec<u32>, tol: f64) -> bool {
     for _round in 0..8 {
         // Boundary edges as (triangle, corner k): the edge from corner k to corner k + 1.
         let keys = edges_by_key(&mesh.triangles, mesh.positions.len());
@@ -254,7 +264,7 @@ fn split_t_junctions(mesh: &mut TriMesh, triangle_voxels: &mut Vec<u32>, tol: f6
             i = j;
         }
         if boundary.is_empty() {
-            return;
+            return false;
         }
         let edge = |f: u32, k: u8| {
             let t = mesh.triangles[f as usize];
@@ -323,7 +333,7 @@ fn split_t_junctions(mesh: &mut TriMesh, triangle_voxels: &mut Vec<u32>, tol: f6
             }
         }
         if splits.is_empty() {
-            return;
+            return true;
         }
         // Re-triangulate each split triangle: its corners and split points form a convex polygon
         // (the points lie on its edges), fanned from a corner not on a split edge when possible.
@@ -355,13 +365,14 @@ fn split_t_junctions(mesh: &mut TriMesh, triangle_voxels: &mut Vec<u32>, tol: f6
             }
         }
     }
+    true
 }
 
 /// Every edge of `triangles` as (key, triangle, corner k), the edge running from corner k to
 /// corner k + 1 and its key `min << 32 | max` of its vertices, sorted by (key, triangle, corner):
 /// equal keys (one edge's uses) are adjacent. Bucketed by the smaller vertex (a counting pass),
 /// then each short bucket sorted, which is several times faster than one sort of all edges.
-fn edges_by_key(triangles: &[[u32; 3]], num_vertices: usize) -> Vec<(u64, u32, u8)> {
+pub(super) fn edges_by_key(triangles: &[[u32; 3]], num_vertices: usize) -> Vec<(u64, u32, u8)> {
     let mut start = vec![0u32; num_vertices + 1];
     for t in triangles {
         for k in 0..3 {
