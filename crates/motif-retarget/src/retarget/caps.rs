@@ -28,7 +28,7 @@
 //! Capping runs only when the input is closed: an input with its own open boundary (a scan, a
 //! single-sided facade) is stitched as it is.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 use earcut::Earcut;
 use foldhash::fast::FixedState;
@@ -36,7 +36,7 @@ use motif_core::geometry::Point3;
 use motif_core::mesh::{TriMesh, UnionFind};
 
 use super::canonical::Lattice;
-use super::stitch::{edges_by_key, for_each_earlier_within, split_t_junctions};
+use super::stitch::{edges_by_key, for_each_earlier_within, single_use, split_t_junctions};
 use super::voxels::VoxelGrid;
 
 /// How close to a voxel face plane (in cells) a loop's vertices must lie.
@@ -98,19 +98,12 @@ pub(crate) fn cap_openings(
     // Directed boundary edges a → b (as in their one triangle), by start vertex.
     let mut next: HashMap<u32, (u32, u32), FixedState> = HashMap::default();
     let mut branching: Vec<u32> = Vec::new();
-    let mut i = 0;
-    while i < keys.len() {
-        let mut j = i + 1;
-        while j < keys.len() && keys[j].0 == keys[i].0 {
-            j += 1;
-        }
-        let (f, k) = (keys[i].1, keys[i].2 as usize);
+    for &(_, f, k) in single_use(&keys) {
         let t = mesh.triangles[f as usize];
-        let (a, b) = (t[k], t[(k + 1) % 3]);
-        if j - i == 1 && a != b && next.insert(a, (b, f)).is_some() {
+        let (a, b) = (t[k as usize], t[(k as usize + 1) % 3]);
+        if a != b && next.insert(a, (b, f)).is_some() {
             branching.push(a);
         }
-        i = j;
     }
     if next.is_empty() {
         if capped.merged > 0 {
@@ -125,10 +118,10 @@ pub(crate) fn cap_openings(
     // Loops, in order of their smallest start vertex (deterministic).
     let mut starts: Vec<u32> = next.keys().copied().collect();
     starts.sort_unstable();
-    let mut used: HashMap<u32, (), FixedState> = HashMap::default();
+    let mut used: HashSet<u32, FixedState> = HashSet::default();
     let mut groups: HashMap<(usize, i64), Vec<(Loop, u32)>, FixedState> = HashMap::default();
     for &s in &starts {
-        if used.contains_key(&s) {
+        if used.contains(&s) {
             continue;
         }
         let mut vertices = vec![s];
@@ -142,14 +135,14 @@ pub(crate) fn cap_openings(
             if w == s {
                 break true;
             }
-            if used.contains_key(&w) || vertices.len() > next.len() {
+            if used.contains(&w) || vertices.len() > next.len() {
                 break false;
             }
-            used.insert(w, ());
+            used.insert(w);
             vertices.push(w);
             v = w;
         };
-        used.insert(s, ());
+        used.insert(s);
         if !closed || vertices.len() < 3 {
             continue;
         }
@@ -241,17 +234,9 @@ fn merge_coincident_boundary(
         return 0;
     }
     let mut boundary = vec![false; mesh.positions.len()];
-    let mut i = 0;
-    while i < keys.len() {
-        let mut j = i + 1;
-        while j < keys.len() && keys[j].0 == keys[i].0 {
-            j += 1;
-        }
-        if j - i == 1 {
-            boundary[(keys[i].0 >> 32) as usize] = true;
-            boundary[(keys[i].0 & 0xffff_ffff) as usize] = true;
-        }
-        i = j;
+    for &(key, _, _) in single_use(keys) {
+        boundary[(key >> 32) as usize] = true;
+        boundary[(key & 0xffff_ffff) as usize] = true;
     }
     if !boundary.contains(&true) {
         return 0;

@@ -408,8 +408,9 @@ pub struct RetargetSession {
     cache: DistanceCache,
     precompute: StageTimings,
     precompute_ms: f64,
-    /// Whether the input has no open boundary edge (caps are only added then).
-    input_closed: bool,
+    /// Whether to cap openings: asked for ([`RetargetOptions::cap_openings`]) and the input has no
+    /// open boundary edge.
+    cap_openings: bool,
 }
 
 impl RetargetSession {
@@ -463,7 +464,7 @@ impl RetargetSession {
         if mesh.triangles.is_empty() {
             return Err(RetargetError::NoFaces { vertices: mesh.positions.len() });
         }
-        let input_closed = options.cap_openings && stitch::mesh_stats(mesh).1 == 0;
+        let cap_openings = options.cap_openings && stitch::mesh_stats(mesh).1 == 0;
         progress.start("voxelize", 0);
         let normalisation = canonical::normalisation_of(mesh)?;
         if let Some(f) = features {
@@ -547,7 +548,7 @@ impl RetargetSession {
             cache: DistanceCache::default(),
             precompute: StageTimings { voxelize_ms, sampling_ms, descriptors_ms, ..Default::default() },
             precompute_ms: t0.elapsed().as_secs_f64() * 1e3,
-            input_closed,
+            cap_openings,
         })
     }
 
@@ -667,7 +668,7 @@ impl RetargetSession {
             &solved.labels,
             &self.lattice,
             weld_tolerance,
-            self.options.cap_openings && self.input_closed,
+            self.cap_openings,
         );
         let stitch_ms = t_stitch.elapsed().as_secs_f64() * 1e3;
         progress.finish();

@@ -251,18 +251,7 @@ pub(super) fn split_t_junctions(mesh: &mut TriMesh, triangle_voxels: &mut Vec<u3
     for _round in 0..8 {
         // Boundary edges as (triangle, corner k): the edge from corner k to corner k + 1.
         let keys = edges_by_key(&mesh.triangles, mesh.positions.len());
-        let mut boundary: Vec<(u32, u8)> = Vec::new();
-        let mut i = 0;
-        while i < keys.len() {
-            let mut j = i + 1;
-            while j < keys.len() && keys[j].0 == keys[i].0 {
-                j += 1;
-            }
-            if j - i == 1 {
-                boundary.push((keys[i].1, keys[i].2));
-            }
-            i = j;
-        }
+        let boundary: Vec<(u32, u8)> = single_use(&keys).map(|&(_, f, k)| (f, k)).collect();
         if boundary.is_empty() {
             return false;
         }
@@ -398,6 +387,12 @@ pub(super) fn edges_by_key(triangles: &[[u32; 3]], num_vertices: usize) -> Vec<(
     keys
 }
 
+/// The entries of [`edges_by_key`] output whose edge no other entry shares: the edges used by one
+/// triangle only.
+pub(super) fn single_use(keys: &[(u64, u32, u8)]) -> impl Iterator<Item = &(u64, u32, u8)> {
+    keys.chunk_by(|a, b| a.0 == b.0).filter(|run| run.len() == 1).map(|run| &run[0])
+}
+
 /// Connected components (through shared vertices, counting only components with triangles) and
 /// boundary edges (used by one triangle) of a mesh. On [`edges_by_key`], several times faster than
 /// [`TriMesh::edge_stats`] and [`TriMesh::components`], which hash every edge; this runs on every
@@ -409,22 +404,8 @@ pub(crate) fn mesh_stats(mesh: &TriMesh) -> (usize, usize) {
         uf.union(t[0] as usize, t[2] as usize);
     }
     let keys = edges_by_key(&mesh.triangles, mesh.positions.len());
-    let mut boundary = 0;
-    let mut i = 0;
-    while i < keys.len() {
-        if keys[i].0 >> 32 == keys[i].0 & 0xffff_ffff {
-            i += 1; // a degenerate edge (a == b)
-            continue;
-        }
-        let mut j = i + 1;
-        while j < keys.len() && keys[j].0 == keys[i].0 {
-            j += 1;
-        }
-        if j - i == 1 {
-            boundary += 1;
-        }
-        i = j;
-    }
+    // Degenerate edges (a == b) are no boundary.
+    let boundary = single_use(&keys).filter(|e| e.0 >> 32 != e.0 & 0xffff_ffff).count();
     let mut seen = vec![false; mesh.positions.len()];
     let mut components = 0;
     for t in &mesh.triangles {
