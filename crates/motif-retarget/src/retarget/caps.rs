@@ -79,12 +79,7 @@ pub(crate) fn cap_openings(
         let c = lattice.canonical(p);
         std::array::from_fn(|d| (c[d] - grid_in.origin[d]) / grid_in.pitch[d])
     };
-    let on_interior_face = |u: [f64; 3]| {
-        (0..3).any(|d| {
-            let r = u[d].round();
-            r >= 1.0 && r <= (out_dims[d] - 1) as f64 && (u[d] - r).abs() <= PLANE_EPS
-        })
-    };
+    let on_interior_face = |u: [f64; 3]| (0..3).any(|d| interior_plane(u[d], out_dims[d]).is_some());
     let mut keys = edges_by_key(&mesh.triangles, mesh.positions.len());
     let mut capped = Capped {
         merged: merge_coincident_boundary(mesh, triangle_voxels, &keys, &on_interior_face, &grid, tol),
@@ -104,12 +99,6 @@ pub(crate) fn cap_openings(
         if a != b && next.insert(a, (b, f)).is_some() {
             branching.push(a);
         }
-    }
-    if next.is_empty() {
-        if capped.merged > 0 {
-            mesh.remove_unreferenced_vertices();
-        }
-        return capped;
     }
     for a in branching {
         next.remove(&a);
@@ -148,8 +137,8 @@ pub(crate) fn cap_openings(
         }
         let u: Vec<[f64; 3]> = vertices.iter().map(|&v| grid(mesh.positions[v as usize])).collect();
         let Some(axis) = (0..3).find(|&d| {
-            let r = u[0][d].round();
-            r >= 1.0 && r <= (out_dims[d] - 1) as f64 && u.iter().all(|p| (p[d] - r).abs() <= PLANE_EPS)
+            interior_plane(u[0][d], out_dims[d])
+                .is_some_and(|r| u.iter().all(|p| (p[d] - r).abs() <= PLANE_EPS))
         }) else {
             continue;
         };
@@ -270,6 +259,13 @@ fn merge_coincident_boundary(
     mesh.triangles.truncate(kept);
     triangle_voxels.truncate(kept);
     merged
+}
+
+/// The interior voxel face plane (grid units) a coordinate lies on along an axis of `n` output
+/// voxels: an integer in `1..n` within [`PLANE_EPS`].
+fn interior_plane(u: f64, n: usize) -> Option<f64> {
+    let r = u.round();
+    (r >= 1.0 && r <= (n as f64) - 1.0 && (u - r).abs() <= PLANE_EPS).then_some(r)
 }
 
 /// The signed area of a closed polygon (shoelace formula), positive counter-clockwise.
