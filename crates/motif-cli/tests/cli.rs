@@ -667,6 +667,39 @@ fn detect_rejects_an_option_out_of_range_by_its_flag_before_reading() {
 }
 
 #[test]
+fn bench_detect_gives_standard_errors_and_the_paired_lead_over_sc() {
+    let d = tmp();
+    let args = ["bench", "detect", "--scenes", "2", "--points", "20000", "--no-icp", "--quiet", "--json"];
+    let r = json_of(&motif(&args, d.path()));
+    let rows = r["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 6, "{r}");
+    let scene_f = |row: &serde_json::Value| -> Vec<f64> {
+        row["scene_f"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect()
+    };
+    for row in rows {
+        let f = scene_f(row);
+        assert_eq!(f.len(), 2, "{row}");
+        let mean = (f[0] + f[1]) / 2.0;
+        assert!((row["f"].as_f64().unwrap() - mean).abs() < 1e-12, "{row}");
+        // Two values: sample deviation |a − b| / √2, over √2.
+        let se = (f[0] - f[1]).abs() / 2.0;
+        assert!((row["f_se"].as_f64().unwrap() - se).abs() < 1e-12, "{row}");
+    }
+    let leads = r["em_lead"].as_array().unwrap();
+    assert_eq!(leads.len(), 3, "{r}");
+    for lead in leads {
+        let level = lead["difficulty"].as_str().unwrap();
+        let of = |method: &str| {
+            scene_f(rows.iter().find(|x| x["difficulty"] == level && x["method"] == method).unwrap())
+        };
+        let (em, sc) = (of("EM + SC"), of("SC (no EM)"));
+        let diff = [em[0] - sc[0], em[1] - sc[1]];
+        assert!((lead["mean"].as_f64().unwrap() - (diff[0] + diff[1]) / 2.0).abs() < 1e-12, "{lead}");
+        assert!((lead["se"].as_f64().unwrap() - (diff[0] - diff[1]).abs() / 2.0).abs() < 1e-12, "{lead}");
+    }
+}
+
+#[test]
 fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
     let dir = tmp();
     let o = motif(
