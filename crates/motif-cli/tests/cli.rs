@@ -654,8 +654,13 @@ fn detect_names_a_nan_point_and_writes_nothing() {
 fn detect_rejects_an_option_out_of_range_by_its_flag_before_reading() {
     let dir = tmp();
     // The input does not exist: the option must be rejected before any reading.
-    for (flag, value) in [("--peak-share", "1.5"), ("--sigma", "0"), ("--bandwidth", "nan"), ("--words", "1")]
-    {
+    for (flag, value) in [
+        ("--peak-share", "1.5"),
+        ("--sigma", "0"),
+        ("--bandwidth", "nan"),
+        ("--words", "1"),
+        ("--fit-trim", "0.5"),
+    ] {
         let o = motif(&["detect", "missing.ply", "-o", "out.json", flag, value], dir.path());
         assert_eq!(o.status.code(), Some(2), "{flag}: {}", stderr(&o));
         assert!(stderr(&o).contains(flag) && !stderr(&o).contains("missing.ply"), "{flag}: {}", stderr(&o));

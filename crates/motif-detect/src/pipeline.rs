@@ -141,6 +141,10 @@ impl DetectOptions {
                 return bad(name, format!("must be between 0 and 1, got {v}"));
             }
         }
+        if !(0.0..0.5).contains(&self.extent.fit_trim) {
+            let v = self.extent.fit_trim;
+            return bad("extent.fit_trim", format!("must be at least 0 and below 0.5, got {v}"));
+        }
         if !(0.0..0.5).contains(&self.instances.box_trim) {
             let v = self.instances.box_trim;
             return bad("instances.box_trim", format!("must be at least 0 and below 0.5, got {v}"));

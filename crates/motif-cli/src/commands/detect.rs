@@ -39,6 +39,7 @@ pub fn validate_options(o: &DetectOptions) -> anyhow::Result<()> {
                 "em.peak_share" => "--peak-share",
                 "instances.bandwidth" => "--bandwidth",
                 "mdl_min_saving" => "--mdl-min-saving",
+                "extent.fit_trim" => "--fit-trim",
                 other => other,
             };
             Err(crate::output::bad_input(format!("{flag} {message}")))
@@ -75,6 +76,8 @@ pub fn options(a: &DetectArgs, g: &GlobalArgs) -> DetectOptions {
     o.method = if a.no_em { Method::Sc } else { Method::EmSc };
     o.extent.regroup = a.regroup.into();
     o.extent.repeated_segments = a.repeated_segments.into();
+    o.extent.fit_boxes = !a.no_box_fit;
+    o.extent.fit_trim = a.fit_trim;
     o
 }
 
