@@ -843,7 +843,8 @@ pub fn regroup(
     (classes, report)
 }
 
-/// Fewest points a box must hold to be fitted (step 7).
+/// Fewest points a box must hold to be fitted (step 7): with fewer, any two stray points would
+/// set the box (the trim removes none of so few).
 const MIN_FIT_POINTS: usize = 8;
 
 /// Step 7: shrinks each instance's box to the resampled `points` it holds (`hash` indexes them),
