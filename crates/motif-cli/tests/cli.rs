@@ -766,12 +766,45 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
         let on = mode != Some("none");
         assert_eq!(rep["options"]["extent"]["regroup"], if on { "extent" } else { "none" });
         let ext = &rep["report"]["extent"];
-        for key in ["support_points", "segments", "grown"] {
+        for key in ["support_points", "segments", "grown", "fitted"] {
             assert_eq!(ext[key].as_u64().unwrap() > 0, on, "{mode:?} {key}: {ext}");
         }
         let o = motif(&["eval", &res, "s.gt.json"], dir.path());
         assert!(o.status.success(), "{}", stderr(&o));
     }
+    // `--no-box-fit` keeps the grown boxes: the same classes and instances, each box holding the
+    // fitted one.
+    let args =
+        ["detect", "s.ply", "-o", "r6.json", "--epsilon", "0.002", "--no-box-fit", "--json", "r6.rep.json"];
+    let o = motif(&args, dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let read = |f: &str| -> serde_json::Value {
+        serde_json::from_slice(&std::fs::read(dir.path().join(f)).unwrap()).unwrap()
+    };
+    let rep = read("r6.rep.json");
+    assert_eq!(rep["options"]["extent"]["fit_boxes"], false);
+    assert_eq!(rep["report"]["extent"]["fitted"], 0);
+    let (grown, fitted) = (read("r6.json"), read("r2.json"));
+    let (gc, fc) = (grown["classes"].as_array().unwrap(), fitted["classes"].as_array().unwrap());
+    assert_eq!(gc.len(), fc.len());
+    let mut smaller = 0;
+    for (g, f) in gc.iter().zip(fc) {
+        let (gi, fi) = (g["instances"].as_array().unwrap(), f["instances"].as_array().unwrap());
+        assert_eq!(gi.len(), fi.len());
+        for (a, b) in gi.iter().zip(fi) {
+            for k in 0..3 {
+                let v = |x: &serde_json::Value, key: &str| x[key][k].as_f64().unwrap();
+                assert!(
+                    v(a, "bbox_min") <= v(b, "bbox_min") && v(b, "bbox_max") <= v(a, "bbox_max"),
+                    "{a} {b}"
+                );
+                if v(a, "bbox_min") < v(b, "bbox_min") || v(b, "bbox_max") < v(a, "bbox_max") {
+                    smaller += 1;
+                }
+            }
+        }
+    }
+    assert!(smaller > 0, "the fit made no box smaller");
     let o = motif(&["detect", "s.ply", "-o", "r5.json", "--regroup", "sideways"], dir.path());
     assert!(!o.status.success() && stderr(&o).contains("sideways"), "{}", stderr(&o));
     assert!(!dir.path().join("r5.json").exists());
