@@ -6,7 +6,7 @@
 //! Each mean F comes with its standard error over the scenes (sample standard deviation / √n), and
 //! EM + SC's lead over SC with the standard error of the per-scene differences: the two methods
 //! run on the same scenes, so the paired difference is what says whether EM's lead is real. The
-//! generated scenes differ a lot from seed to seed (street medium F 0.784 on seeds 1–6, 0.826 on
+//! generated scenes differ a lot from seed to seed (street medium F 0.788 on seeds 1–6, 0.826 on
 //! 7–12), and a target missed by 0.01 means little when the error is 0.03.
 
 use std::time::Instant;
