@@ -663,10 +663,14 @@ pub(crate) fn convex_hull(p: &mut [[f64; 2]]) -> Vec<[f64; 2]> {
     h
 }
 
+/// The median box size of `instances` per world axis.
+pub(crate) fn median_box_size(instances: &[Instance]) -> Point3 {
+    [0, 1, 2].map(|k| median(instances.iter().map(|i| i.aabb.extent()[k]).collect()))
+}
+
 /// The axis along which a class's median box size is smallest (lowest axis on ties).
 fn thinnest(instances: &[Instance]) -> usize {
-    let med: Vec<f64> =
-        (0..3).map(|k| median(instances.iter().map(|i| i.aabb.extent()[k]).collect())).collect();
+    let med = median_box_size(instances);
     (0..3).fold(0, |best, k| if med[k] < med[best] { k } else { best })
 }
 
@@ -887,7 +891,7 @@ fn fit_boxes(classes: &mut [Class], points: &[Point3], hash: &SpatialHash, eps: 
                 inst.aabb = fit;
             }
         }
-        c.extent = [0, 1, 2].map(|k| median(c.instances.iter().map(|i| i.aabb.extent()[k]).collect()));
+        c.extent = median_box_size(&c.instances);
     }
     fitted
 }
@@ -957,7 +961,7 @@ pub fn split_and_merge(
         merges += 1;
     }
     for c in &mut out {
-        c.extent = [0, 1, 2].map(|k| median(c.instances.iter().map(|i| i.aabb.extent()[k]).collect()));
+        c.extent = median_box_size(&c.instances);
     }
     out.sort_by_key(|c| std::cmp::Reverse(c.instances.len()));
     (out, splits, merges)

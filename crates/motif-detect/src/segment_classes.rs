@@ -83,7 +83,8 @@ use motif_core::geometry::{Aabb, Mat4, add, cross, dot, scale, sub};
 use serde::{Deserialize, Serialize};
 
 use crate::extent::{
-    ExtentOptions, Segments, average_linkage, chebyshev, convex_hull, median, smallest_rectangle,
+    ExtentOptions, Segments, average_linkage, chebyshev, convex_hull, median, median_box_size,
+    smallest_rectangle,
 };
 use crate::instances::{Class, Instance, InstanceOptions};
 use crate::preprocess::{Feature, Preprocessed};
@@ -291,7 +292,7 @@ pub(crate) fn segment_classes(
             })
             .collect();
         report.instances += instances.len();
-        let extent = std::array::from_fn(|k| median(instances.iter().map(|i| i.aabb.extent()[k]).collect()));
+        let extent = median_box_size(&instances);
         out.push(Class {
             words: Vec::new(),
             centre_word: usize::MAX,
