@@ -726,6 +726,10 @@ pub struct RetargetArgs {
     /// only added when the input is closed).
     #[arg(long)]
     pub no_caps: bool,
+    /// Leave the holes still open after capping as they are instead of filling them (slits along
+    /// seams where neighbouring copies differ; holes are only filled when the input is closed)
+    #[arg(long)]
+    pub no_fill: bool,
     /// When the model has no repetition, scale it to --target-size instead of failing.
     #[arg(long)]
     pub plain_resize: bool,

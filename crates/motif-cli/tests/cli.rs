@@ -861,14 +861,16 @@ fn retarget_with_infinite_seams_warns_and_suggests_steps_that_stitch_cleanly() {
     assert!(r["retarget"]["infinite_seams"].as_u64().unwrap() > 0);
     assert_eq!(r["clean_alternatives"], serde_json::json!([[1, 0, 0]]));
     assert!(stderr(&o).contains("--steps 1,0 stitches cleanly"), "{}", stderr(&o));
-    // The shelf's boards are closed parts that the seams do not cut: nothing to cap, with or
-    // without --no-caps.
+    // The shelf's boards are closed parts that the seams do not cut: nothing to cap or fill, with
+    // or without --no-caps and --no-fill.
     assert_eq!(r["retarget"]["capped_loops"].as_u64(), Some(0));
+    assert_eq!(r["retarget"]["filled_holes"].as_u64(), Some(0));
     let n = json_of(&motif(
-        &["retarget", "low.obj", "--steps", "0,1", "--no-caps", "-o", "t2.obj", "--json"],
+        &["retarget", "low.obj", "--steps", "0,1", "--no-caps", "--no-fill", "-o", "t2.obj", "--json"],
         d.path(),
     ));
     assert_eq!(n["retarget"]["output_boundary_edges"], r["retarget"]["output_boundary_edges"]);
+    assert_eq!(n["retarget"]["fill_triangles"].as_u64(), Some(0));
     // The suggestion holds, and a clean stitching neither warns nor suggests.
     let r = json_of(&motif(&["retarget", "low.obj", "--steps", "1,0", "-o", "wide.obj", "--json"], d.path()));
     assert_eq!(r["retarget"]["infinite_seams"].as_u64(), Some(0));

@@ -18,6 +18,7 @@ pub mod curvature;
 pub mod data;
 pub mod error;
 pub mod geometry;
+pub mod hole_fill;
 pub mod icp;
 pub mod io;
 pub mod mesh;

@@ -251,6 +251,7 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             AssignmentArg::Cut => TriangleAssignment::Cut,
         },
         cap_openings: !a.no_caps,
+        fill_holes: !a.no_fill,
         ..Default::default()
     };
     let mut session = RetargetSession::with_features(&mesh, &features, &principal, &options, &bar)?;
@@ -280,6 +281,18 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             mesh.num_vertices(),
             mesh.num_triangles()
         );
+        if r.capped_loops + r.filled_holes + r.output_boundary_edges > 0 {
+            println!(
+                "closing: {} openings capped ({} triangles), {} holes filled ({} triangles), {} boundary edges \
+                 left (input {})",
+                r.capped_loops,
+                r.cap_triangles,
+                r.filled_holes,
+                r.fill_triangles,
+                r.output_boundary_edges,
+                mesh.edge_stats().boundary
+            );
+        }
         if r.infinite_seams > 0 {
             let dims = principal.len().clamp(1, 3);
             let others = match alternatives.as_deref() {

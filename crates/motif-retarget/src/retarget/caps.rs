@@ -20,7 +20,11 @@
 //! loop edges, so that every boundary edge gains its missing twin; ear clipping may skip
 //! collinear loop vertices, which the T-junction pass then splits in. A group whose
 //! triangulation does not cover its area (a relative deviation above 10⁻⁶: loops that cross, or
-//! an outline and hole that do not fit) is left open. This is the cap a mesh slicer puts on a
+//! an outline and hole that do not fit) is left open, and so is every cap that would run along a
+//! loop edge instead of against it (where a loop crosses itself by a sliver, as two copies'
+//! overlapping outlines do, ear clipping covers the overlap twice, once each way). What stays
+//! open is left to the hole fill ([`motif_core::hole_fill`], `RetargetOptions::fill_holes`).
+//! This is the cap a mesh slicer puts on a
 //! cut (Blender's bisect with fill, trimesh's `slice_plane(cap=True)`); where two copies' parts
 //! touch at the plane, the caps make two closed parts touching, or, when one's opening lies
 //! inside the other's, one surface joined around it.
@@ -185,11 +189,35 @@ pub(crate) fn cap_openings(
             }
             // Caps turn against the outline's boundary edges: the opposite sign of its area.
             let want = -loops[o].0.area.signum();
+            let caps: Vec<[u32; 3]> = out
+                .chunks_exact(3)
+                .map(|t| {
+                    let (a, b, c) = (t[0] as usize, t[1] as usize, t[2] as usize);
+                    let s = signed_area(&[points[a], points[b], points[c]]);
+                    if s * want >= 0.0 { [ids[a], ids[b], ids[c]] } else { [ids[a], ids[c], ids[b]] }
+                })
+                .collect();
+            // Every loop edge a cap uses must run against its triangle. A loop that crosses
+            // itself by a sliver (two copies' outlines overlapping) can pass the area test while
+            // its twisted part runs the other way, and caps there flip the surface (58 edges used
+            // twice the same way on the CGAL cheese grown by +1 along its second offset, 93 by
+            // +0,+0,+1). Those caps are left out. Earcut covers the overlap twice, once each way,
+            // so this leaves the cheese +1 closed and consistently oriented; any opening left
+            // runs consistently, and the hole fill closes it along its own edges
+            // ([`motif_core::hole_fill`]).
+            let along: HashSet<(u32, u32), FixedState> = std::iter::once(o)
+                .chain(holes.iter().copied())
+                .flat_map(|l| {
+                    let v = &loops[l].0.vertices;
+                    (0..v.len()).map(move |i| (v[i], v[(i + 1) % v.len()]))
+                })
+                .collect();
+            let caps: Vec<[u32; 3]> = caps
+                .into_iter()
+                .filter(|t| !(0..3).any(|k| along.contains(&(t[k], t[(k + 1) % 3]))))
+                .collect();
             let voxel = triangle_voxels[loops[o].1 as usize];
-            for t in out.chunks_exact(3) {
-                let (a, b, c) = (t[0] as usize, t[1] as usize, t[2] as usize);
-                let s = signed_area(&[points[a], points[b], points[c]]);
-                let tri = if s * want >= 0.0 { [ids[a], ids[b], ids[c]] } else { [ids[a], ids[c], ids[b]] };
+            for tri in caps {
                 mesh.triangles.push(tri);
                 triangle_voxels.push(voxel);
                 capped.triangles += 1;

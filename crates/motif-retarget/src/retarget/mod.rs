@@ -19,8 +19,9 @@
 //! 4. **Label** every voxel of Ω with a step vector `k` — it copies input voxel `x − k`, shifted
 //!    by `Σ kᵢ vᵢ` — by minimising eq. 4.3 with alpha-expansion ([`mod@crate::alpha_expansion`]).
 //! 5. **Stitch** the copies' triangles and weld the seams; where no copy continues a part cut at
-//!    a voxel face, cap the opening (`caps`, when the input is closed; not in the thesis). The
-//!    result is in model units.
+//!    a voxel face, cap the opening (`caps`), and fill the holes still open, slits where two
+//!    neighbouring copies differ ([`motif_core::hole_fill`]); both only when the input is closed,
+//!    and neither in the thesis. The result is in model units.
 //!
 //! [`RetargetSession`] does steps 1–3 once and solves for any number of step vectors
 //! (interactive resizing; Hausdorff distances are cached across solves); [`retarget`] and
@@ -204,6 +205,11 @@ pub struct RetargetOptions {
     /// infinite cost), when the input is closed (see the `caps` module). Not in the thesis; default
     /// true.
     pub cap_openings: bool,
+    /// Fill the holes still open after welding and capping, when the input is closed: slits along
+    /// seams where two neighbouring copies' geometry differs, which no copy continues and no
+    /// voxel face plane holds ([`motif_core::hole_fill`]: Liepa's triangulation of each boundary
+    /// loop, no new vertices). Not in the thesis; default true.
+    pub fill_holes: bool,
 }
 
 impl Default for RetargetOptions {
@@ -224,6 +230,7 @@ impl Default for RetargetOptions {
             force: false,
             graph_cut: AlphaExpansionOptions::default(),
             cap_openings: true,
+            fill_holes: true,
         }
     }
 }
@@ -373,6 +380,12 @@ pub struct RetargetReport {
     /// Triangles those caps added.
     #[serde(default)]
     pub cap_triangles: usize,
+    /// Holes filled after capping (boundary loops closed; see [`RetargetOptions::fill_holes`]).
+    #[serde(default)]
+    pub filled_holes: usize,
+    /// Triangles those fills added.
+    #[serde(default)]
+    pub fill_triangles: usize,
     /// `normalised_from_model`, row-major 4×4.
     pub normalised_from_model: Mat4,
     /// `canonical_from_normalised`, row-major 3×3 (identity for the dense baseline).
@@ -411,6 +424,9 @@ pub struct RetargetSession {
     /// Whether to cap openings: asked for ([`RetargetOptions::cap_openings`]) and the input has no
     /// open boundary edge.
     cap_openings: bool,
+    /// Whether to fill holes: asked for ([`RetargetOptions::fill_holes`]) and the input has no
+    /// open boundary edge.
+    fill_holes: bool,
 }
 
 impl RetargetSession {
@@ -464,7 +480,8 @@ impl RetargetSession {
         if mesh.triangles.is_empty() {
             return Err(RetargetError::NoFaces { vertices: mesh.positions.len() });
         }
-        let cap_openings = options.cap_openings && stitch::mesh_stats(mesh).1 == 0;
+        let closed = stitch::mesh_stats(mesh).1 == 0;
+        let (cap_openings, fill_holes) = (options.cap_openings && closed, options.fill_holes && closed);
         progress.start("voxelize", 0);
         let normalisation = canonical::normalisation_of(mesh)?;
         if let Some(f) = features {
@@ -549,6 +566,7 @@ impl RetargetSession {
             precompute: StageTimings { voxelize_ms, sampling_ms, descriptors_ms, ..Default::default() },
             precompute_ms: t0.elapsed().as_secs_f64() * 1e3,
             cap_openings,
+            fill_holes,
         })
     }
 
@@ -669,6 +687,7 @@ impl RetargetSession {
             &self.lattice,
             weld_tolerance,
             self.cap_openings,
+            self.fill_holes,
         );
         let stitch_ms = t_stitch.elapsed().as_secs_f64() * 1e3;
         progress.finish();
@@ -716,6 +735,8 @@ impl RetargetSession {
             welded_vertices: stitched.welded + stitched.capped.merged,
             capped_loops: stitched.capped.loops,
             cap_triangles: stitched.capped.triangles,
+            filled_holes: stitched.filled.filled,
+            fill_triangles: stitched.filled.triangles,
             normalised_from_model: canonical::normalised_from_model(&self.lattice.normalisation),
             canonical_from_normalised: self.lattice.canonical_from_normalised,
         };

@@ -18,6 +18,7 @@ use std::collections::HashMap;
 use foldhash::fast::FixedState;
 
 use motif_core::geometry::{Point3, add, dist2, dot, scale, sub};
+use motif_core::hole_fill::{HoleFillOptions, HoleFillReport, fill_holes};
 use motif_core::mesh::{TriMesh, UnionFind};
 
 use super::canonical::Lattice;
@@ -34,11 +35,15 @@ pub(crate) struct Stitched {
     pub welded: usize,
     /// Openings capped ([`super::caps`]).
     pub capped: Capped,
+    /// Holes filled after capping ([`motif_core::hole_fill`]).
+    pub filled: HoleFillReport,
 }
 
 /// Assembles the output mesh. `labels` has one step vector per output voxel of the grid with
 /// `out_dims` voxels; `weld_tolerance` is in model units; with `cap`, the openings left on voxel
-/// faces are capped ([`super::caps`]).
+/// faces are capped ([`super::caps`]); with `fill_open`, the holes still open after that are filled
+/// ([`motif_core::hole_fill`]; each new triangle takes the output voxel of the triangle beside its
+/// hole).
 pub(crate) fn stitch(
     mesh: &TriMesh,
     tri_voxel: &[u32],
@@ -48,6 +53,7 @@ pub(crate) fn stitch(
     lattice: &Lattice,
     weld_tolerance: f64,
     cap: bool,
+    fill_open: bool,
 ) -> Stitched {
     let n_in = grid_in.len();
     // Triangles per input voxel (CSR, triangle order kept).
@@ -191,7 +197,16 @@ pub(crate) fn stitch(
     } else {
         Capped::default()
     };
-    Stitched { mesh, triangle_voxels, welded, capped }
+    let filled = if fill_open && open && mesh_stats(&mesh).1 > 0 {
+        let f = fill_holes(&mut mesh, &HoleFillOptions::default());
+        for &t in &f.neighbour {
+            triangle_voxels.push(triangle_voxels[t as usize]);
+        }
+        f.report
+    } else {
+        HoleFillReport::default()
+    };
+    Stitched { mesh, triangle_voxels, welded, capped, filled }
 }
 
 /// Calls `visit(i, j)` for every pair of points `j < i`, both `active`, at most `tol` apart
