@@ -16,11 +16,16 @@
 //! **Loops.** Every edge used by exactly one triangle is a boundary edge; the hole side runs it
 //! the other way round (a triangle that closes the hole uses the edge opposite to the existing
 //! triangle, so the fill keeps the mesh's orientation). The boundary half-edges are walked from
-//! their start vertex, lowest index first; when the walk comes back to a vertex already on its
-//! path, the part after that vertex is a simple loop and is cut off. So a boundary that touches
-//! itself at a vertex (two holes sharing a corner, which is common along seams) gives two simple
-//! loops instead of one loop visiting a vertex twice. A walk that ends at a vertex with no
-//! unused outgoing half-edge (a boundary through a non-manifold edge) is left open.
+//! their start vertex (first where a chain of them starts, then lowest index first); when the
+//! walk comes back to a vertex already on its path, the part after that vertex is a simple loop
+//! and is cut off. So a boundary that touches itself at a vertex (two holes sharing a corner,
+//! which is common along seams) gives two simple loops instead of one loop visiting a vertex
+//! twice. A walk can also end at a vertex with no unused outgoing half-edge, where the boundary
+//! meets a non-manifold edge: when an existing edge leads from there back to the walk's start and
+//! is used by an odd number (three or more) of triangles, fewer of them running that way than
+//! back, the walk is closed along it. That edge then has as many triangles each way: where a
+//! part's face ends on the edge at which two other faces meet (a beam cut against the side of a
+//! post on the gridbeam shelf), the fill completes the part. Other such walks are left open.
 //!
 //! **Triangulation.** For a loop `v₀ … v_{n−1}`, the weight of the best triangulation of the
 //! sub-polygon `vᵢ … v_k` is `W(i, k) = min_{i<m<k} W(i, m) ⊕ W(m, k) ⊕ w(i, m, k)`, where a
@@ -118,7 +123,20 @@ pub fn fill_holes(mesh: &mut TriMesh, options: &HoleFillOptions) -> FilledHoles 
     half.sort_by_key(|h| (h.from, h.to));
     // Edges the fills add, checked besides the table.
     let mut added: HashSet<u64> = HashSet::new();
-    let loops = simple_loops(&half, &mut out.report.open_edges);
+    // A walk that ends where an existing edge back to its start is used by an odd number of
+    // triangles, three or more (a part's face ends on an edge where two other faces meet), is
+    // closed along that edge: with the fill's triangle the edge has an even number, as many each
+    // way when fewer existing ones run from the walk's end to its start than back.
+    let mut closed_along: HashSet<u64> = HashSet::new();
+    let close = |v: u32, s: u32| -> Option<u32> {
+        let key = edge_key(v, s);
+        let uses = edges.uses(key, &mesh.triangles);
+        let forward = uses.iter().filter(|&&(a, _)| a == v).count();
+        let odd = uses.len() >= 3 && uses.len() % 2 == 1 && 2 * forward < uses.len();
+        (odd && closed_along.insert(key)).then(|| uses[0].1)
+    };
+    let (loops, closing) = simple_loops(&half, &mut out.report.open_edges, close);
+    half.extend(closing);
     out.report.loops = loops.len();
     let normal_of = |mesh: &TriMesh, f: u32| -> Option<Point3> {
         let [a, b, c] = mesh.corners(f as usize);
@@ -204,6 +222,17 @@ impl EdgeTable {
         EdgeTable { rows, start }
     }
 
+    /// The triangles using the edge `key`, each as (the vertex its side starts from, triangle).
+    fn uses(&self, key: u64, triangles: &[[u32; 3]]) -> Vec<(u32, u32)> {
+        let v = (key >> 32) as usize;
+        let Some(&lo) = self.start.get(v) else { return Vec::new() };
+        self.rows[lo as usize..self.start[v + 1] as usize]
+            .iter()
+            .filter(|r| r.0 == key)
+            .map(|&(_, f, k)| (triangles[f as usize][k as usize], f))
+            .collect()
+    }
+
     fn contains(&self, key: u64) -> bool {
         let v = (key >> 32) as usize;
         let Some(&lo) = self.start.get(v) else { return false };
@@ -217,12 +246,24 @@ fn unit(v: Point3) -> Option<Point3> {
     (l > 0.0 && l.is_finite()).then(|| scale(v, 1.0 / l))
 }
 
-/// Splits the boundary half-edges (sorted by `from`) into simple loops, each a list of half-edge
-/// indices in walking order; edges of walks that do not close are added to `open`.
-fn simple_loops(half: &[HalfEdge], open: &mut usize) -> Vec<Vec<usize>> {
+/// Splits the boundary half-edges (sorted by `from`) into simple loops, each a list of indices
+/// into `half` followed by the returned closing half-edges (index `half.len() + j` is the
+/// `j`-th of them). Walks start where a chain of boundary edges starts (a vertex with more
+/// boundary edges leaving than arriving), then anywhere. A walk that ends at a vertex `v` with no
+/// unused boundary edge left is closed when `close(v, s)`, `s` its first vertex, gives a triangle
+/// along an existing edge from `v` to `s` (see [`fill_holes`]); otherwise its edges are added to
+/// `open`.
+fn simple_loops(
+    half: &[HalfEdge],
+    open: &mut usize,
+    mut close: impl FnMut(u32, u32) -> Option<u32>,
+) -> (Vec<Vec<usize>>, Vec<HalfEdge>) {
     let mut first_out: HashMap<u32, usize> = HashMap::new();
+    let mut surplus: HashMap<u32, i64> = HashMap::new();
     for (i, h) in half.iter().enumerate().rev() {
         first_out.insert(h.from, i);
+        *surplus.entry(h.from).or_insert(0) += 1;
+        *surplus.entry(h.to).or_insert(0) -= 1;
     }
     let mut used = vec![false; half.len()];
     // The next unused half-edge leaving `v`, lowest `to` first.
@@ -236,10 +277,13 @@ fn simple_loops(half: &[HalfEdge], open: &mut usize) -> Vec<Vec<usize>> {
         }
         None
     };
+    let mut order: Vec<usize> = (0..half.len()).filter(|&i| surplus[&half[i].from] > 0).collect();
+    order.extend((0..half.len()).filter(|&i| surplus[&half[i].from] <= 0));
     let mut loops = Vec::new();
+    let mut closing: Vec<HalfEdge> = Vec::new();
     let mut path: Vec<usize> = Vec::new();
     let mut on_path: HashMap<u32, usize> = HashMap::new();
-    for start in 0..half.len() {
+    for start in order {
         if used[start] {
             continue;
         }
@@ -267,13 +311,22 @@ fn simple_loops(half: &[HalfEdge], open: &mut usize) -> Vec<Vec<usize>> {
             match next_from(v, &used) {
                 Some(n) => e = n,
                 None => {
-                    *open += path.len();
+                    let s = half[path[0]].from;
+                    match close(v, s) {
+                        Some(face) if path.len() >= 2 => {
+                            closing.push(HalfEdge { from: v, to: s, face });
+                            let mut cycle = std::mem::take(&mut path);
+                            cycle.push(half.len() + closing.len() - 1);
+                            loops.push(cycle);
+                        }
+                        _ => *open += path.len(),
+                    }
                     break;
                 }
             }
         }
     }
-    loops
+    (loops, closing)
 }
 
 /// A triangulation's weight: largest dihedral angle (as its [`fold`], which orders angles alike
@@ -580,6 +633,34 @@ mod tests {
         assert_closed_and_oriented(&m);
         assert!((m.area() - 6.0).abs() < 1e-12, "area {}", m.area());
         assert!((m.signed_volume() - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_walk_ending_on_an_edge_three_triangles_share_is_closed_along_it() {
+        // A one-sided fin (one triangle) standing on the cube's edge 0–1, either way round: that
+        // edge has three triangles and the fin's other two sides are open. The walk along them
+        // ends at one end of 0–1 and is closed along it: the fin gets its back, and edge 0–1
+        // four triangles, two each way.
+        let c = 8;
+        for fin in [[0, 1, c], [1, 0, c]] {
+            let mut m = cube();
+            m.positions.push([0.5, -0.5, -0.5]);
+            m.triangles.push(fin);
+            let f = fill_holes(&mut m, &HoleFillOptions::default());
+            assert_eq!(f.report, HoleFillReport { loops: 1, filled: 1, triangles: 1, open_edges: 0 });
+            let back = [fin[1], fin[0], fin[2]];
+            let added = m.triangles[13];
+            assert!((0..3).any(|r| [0, 1, 2].map(|k| back[(k + r) % 3]) == added), "{fin:?}: {added:?}");
+            assert_eq!(m.edge_stats().boundary, 0);
+            let mut net: HashMap<(u32, u32), i64> = HashMap::new();
+            for t in &m.triangles {
+                for k in 0..3 {
+                    let (a, b) = (t[k], t[(k + 1) % 3]);
+                    *net.entry((a.min(b), a.max(b))).or_insert(0) += if a < b { 1 } else { -1 };
+                }
+            }
+            assert!(net.values().all(|&n| n == 0), "{fin:?}: every edge used as often each way");
+        }
     }
 
     #[test]
