@@ -58,8 +58,9 @@ use crate::mesh::TriMesh;
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct HoleFillOptions {
-    /// Loops with more vertices are left open: the triangulation takes O(n³) time (about 0.1 s
-    /// for 500 vertices). Default 600.
+    /// Loops with more vertices are left open: the triangulation takes O(n³) time (15 ms for the
+    /// 193-vertex loop of the CGAL cheese grown along its third offset, so about 0.4 s at 600).
+    /// Default 600.
     pub max_loop_vertices: usize,
 }
 

@@ -24,10 +24,9 @@
 //! loop edge instead of against it (where a loop crosses itself by a sliver, as two copies'
 //! overlapping outlines do, ear clipping covers the overlap twice, once each way). What stays
 //! open is left to the hole fill ([`motif_core::hole_fill`], `RetargetOptions::fill_holes`).
-//! This is the cap a mesh slicer puts on a
-//! cut (Blender's bisect with fill, trimesh's `slice_plane(cap=True)`); where two copies' parts
-//! touch at the plane, the caps make two closed parts touching, or, when one's opening lies
-//! inside the other's, one surface joined around it.
+//! This is the cap a mesh slicer puts on a cut (Blender's bisect with fill, trimesh's
+//! `slice_plane(cap=True)`); where two copies' parts touch at the plane, the caps make two closed
+//! parts touching, or, when one's opening lies inside the other's, one surface joined around it.
 //!
 //! Capping runs only when the input is closed: an input with its own open boundary (a scan, a
 //! single-sided facade) is stitched as it is.
@@ -187,16 +186,6 @@ pub(crate) fn cap_openings(
             {
                 continue;
             }
-            // Caps turn against the outline's boundary edges: the opposite sign of its area.
-            let want = -loops[o].0.area.signum();
-            let caps: Vec<[u32; 3]> = out
-                .chunks_exact(3)
-                .map(|t| {
-                    let (a, b, c) = (t[0] as usize, t[1] as usize, t[2] as usize);
-                    let s = signed_area(&[points[a], points[b], points[c]]);
-                    if s * want >= 0.0 { [ids[a], ids[b], ids[c]] } else { [ids[a], ids[c], ids[b]] }
-                })
-                .collect();
             // Every loop edge a cap uses must run against its triangle. A loop that crosses
             // itself by a sliver (two copies' outlines overlapping) can pass the area test while
             // its twisted part runs the other way, and caps there flip the surface (58 edges used
@@ -212,10 +201,14 @@ pub(crate) fn cap_openings(
                     (0..v.len()).map(move |i| (v[i], v[(i + 1) % v.len()]))
                 })
                 .collect();
-            let caps: Vec<[u32; 3]> = caps
-                .into_iter()
-                .filter(|t| !(0..3).any(|k| along.contains(&(t[k], t[(k + 1) % 3]))))
-                .collect();
+            // Caps turn against the outline's boundary edges: the opposite sign of its area.
+            let want = -loops[o].0.area.signum();
+            let caps = out.chunks_exact(3).filter_map(|t| {
+                let (a, b, c) = (t[0] as usize, t[1] as usize, t[2] as usize);
+                let s = signed_area(&[points[a], points[b], points[c]]);
+                let tri = if s * want >= 0.0 { [ids[a], ids[b], ids[c]] } else { [ids[a], ids[c], ids[b]] };
+                (!(0..3).any(|k| along.contains(&(tri[k], tri[(k + 1) % 3])))).then_some(tri)
+            });
             let voxel = triangle_voxels[loops[o].1 as usize];
             for tri in caps {
                 mesh.triangles.push(tri);

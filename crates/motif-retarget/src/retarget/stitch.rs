@@ -197,7 +197,7 @@ pub(crate) fn stitch(
     } else {
         Capped::default()
     };
-    let filled = if fill_open && open && mesh_stats(&mesh).1 > 0 {
+    let filled = if fill_open && open {
         let f = fill_holes(&mut mesh, &HoleFillOptions::default());
         for &t in &f.neighbour {
             triangle_voxels.push(triangle_voxels[t as usize]);
