@@ -842,6 +842,26 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
 }
 
 #[test]
+fn info_reports_whether_the_surface_is_closed_and_consistently_oriented() {
+    let d = tmp();
+    let tet = |flip: bool| {
+        let last = if flip { "f 2 4 3" } else { "f 2 3 4" };
+        format!("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\n{last}\n")
+    };
+    std::fs::write(d.path().join("tet.obj"), tet(false)).unwrap();
+    std::fs::write(d.path().join("flipped.obj"), tet(true)).unwrap();
+    let ok = motif(&["info", "tet.obj"], d.path());
+    assert!(stdout(&ok).contains("closed, consistently oriented"), "{}", stdout(&ok));
+    let j = json_of(&motif(&["info", "tet.obj", "--json"], d.path()));
+    assert_eq!(j["misoriented_edges"].as_u64(), Some(0));
+    // One face turned over: its three edges are each used twice the same way.
+    let bad = motif(&["info", "flipped.obj"], d.path());
+    assert!(stdout(&bad).contains("3 misoriented") && stdout(&bad).contains("not consistently oriented"));
+    let j = json_of(&motif(&["info", "flipped.obj", "--json"], d.path()));
+    assert_eq!((j["boundary_edges"].as_u64(), j["misoriented_edges"].as_u64()), (Some(0), Some(3)));
+}
+
+#[test]
 fn retarget_with_infinite_seams_warns_and_suggests_steps_that_stitch_cleanly() {
     // A shelf one row high: its voxel grid is two cells high (the row and the closing top board),
     // so growing it in height puts every seam against the outside of the input, while growing it

@@ -28,6 +28,10 @@ pub struct EdgeStats {
     pub boundary: usize,
     /// Edges used by three or more triangles.
     pub non_manifold: usize,
+    /// Edges that more triangles run one way than the other, by two or more: two neighbouring
+    /// triangles facing opposite ways (trimesh's `is_winding_consistent` is false when any is).
+    /// An edge with an odd number of triangles is off by one at best and is not counted for it.
+    pub misoriented: usize,
 }
 
 /// Connected components of a mesh (see [`TriMesh::components`]).
@@ -152,22 +156,27 @@ impl TriMesh {
         s / (3 * self.triangles.len()) as f64
     }
 
-    /// Counts distinct edges, boundary edges (one triangle) and non-manifold edges (three or more).
+    /// Counts distinct edges, boundary edges (one triangle), non-manifold edges (three or more)
+    /// and misoriented edges (see [`EdgeStats::misoriented`]).
     pub fn edge_stats(&self) -> EdgeStats {
-        let mut count: HashMap<(u32, u32), u32> = HashMap::with_capacity(self.triangles.len() * 2);
+        // Per undirected edge: triangles using it, and those running low → high minus the others.
+        let mut count: HashMap<(u32, u32), (u32, i32)> = HashMap::with_capacity(self.triangles.len() * 2);
         for t in &self.triangles {
             for k in 0..3 {
                 let (a, b) = (t[k], t[(k + 1) % 3]);
                 if a == b {
                     continue;
                 }
-                *count.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+                let e = count.entry((a.min(b), a.max(b))).or_insert((0, 0));
+                e.0 += 1;
+                e.1 += if a < b { 1 } else { -1 };
             }
         }
         EdgeStats {
             edges: count.len(),
-            boundary: count.values().filter(|&&c| c == 1).count(),
-            non_manifold: count.values().filter(|&&c| c >= 3).count(),
+            boundary: count.values().filter(|c| c.0 == 1).count(),
+            non_manifold: count.values().filter(|c| c.0 >= 3).count(),
+            misoriented: count.values().filter(|c| c.1.abs() >= 2).count(),
         }
     }
 

@@ -917,16 +917,7 @@ fn caps_and_fills_close_the_openings_of_real_models() {
         // Caps and fill keep the orientation: they add no edge used more times one way than the
         // other, beyond the one an odd number of uses leaves. (Caps on a loop that crosses itself
         // by a sliver used to: 93 such edges on the cheese.)
-        let same_way = |m: &motif_core::mesh::TriMesh| {
-            let mut net: std::collections::HashMap<(u32, u32), i64> = std::collections::HashMap::new();
-            for t in &m.triangles {
-                for k in 0..3 {
-                    let (a, b) = (t[k], t[(k + 1) % 3]);
-                    *net.entry((a.min(b), a.max(b))).or_insert(0) += if a < b { 1 } else { -1 };
-                }
-            }
-            net.values().filter(|n| n.abs() >= 2).count()
-        };
+        let same_way = |m: &motif_core::mesh::TriMesh| m.edge_stats().misoriented;
         let flips = [same_way(&open.mesh), same_way(&capped.mesh), same_way(&filled.mesh)];
         println!("{file}: edges used more often one way (plain, capped, filled) {flips:?}");
         assert!(flips[1] <= flips[0] && flips[2] <= flips[1], "{file}: {flips:?}");

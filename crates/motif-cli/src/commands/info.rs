@@ -25,6 +25,7 @@ struct InfoReport {
     edges: usize,
     boundary_edges: usize,
     non_manifold_edges: usize,
+    misoriented_edges: usize,
     degenerate_triangles: usize,
     has_normals: bool,
     has_colors: bool,
@@ -57,6 +58,7 @@ pub fn run(a: InfoArgs, _g: &GlobalArgs) -> anyhow::Result<()> {
         edges: edges.edges,
         boundary_edges: edges.boundary,
         non_manifold_edges: edges.non_manifold,
+        misoriented_edges: edges.misoriented,
         degenerate_triangles: mesh.degenerate_triangles(),
         has_normals: model.vertices.normals.is_some(),
         has_colors: model.vertices.colors.is_some(),
@@ -92,9 +94,13 @@ pub fn run(a: InfoArgs, _g: &GlobalArgs) -> anyhow::Result<()> {
             }
         );
         println!(
-            "  edges        {} ({} boundary, {} non-manifold)",
-            r.edges, r.boundary_edges, r.non_manifold_edges
+            "  edges        {} ({} boundary, {} non-manifold, {} misoriented)",
+            r.edges, r.boundary_edges, r.non_manifold_edges, r.misoriented_edges
         );
+        let closed = if r.boundary_edges == 0 { "closed" } else { "open" };
+        let winding =
+            if r.misoriented_edges == 0 { "consistently oriented" } else { "not consistently oriented" };
+        println!("  surface      {closed}, {winding}");
         println!("  degenerate   {} triangles", r.degenerate_triangles);
     }
     let mut extras = Vec::new();
