@@ -51,8 +51,8 @@ use std::collections::{HashMap, HashSet};
 
 use serde::{Deserialize, Serialize};
 
-use crate::geometry::{Point3, cross, dot, norm, scale, sub};
-use crate::mesh::TriMesh;
+use crate::geometry::{Point3, cross, dot, norm, normalize, scale, sub};
+use crate::mesh::{TriMesh, edges_by_key, single_use};
 
 /// Options of [`fill_holes`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -108,12 +108,9 @@ struct HalfEdge {
 pub fn fill_holes(mesh: &mut TriMesh, options: &HoleFillOptions) -> FilledHoles {
     let mut out = FilledHoles::default();
     let edges = EdgeTable::new(&mesh.triangles, mesh.positions.len());
-    let mut half: Vec<HalfEdge> = edges
-        .rows
-        .chunk_by(|a, b| a.0 == b.0)
-        .filter(|run| run.len() == 1)
-        .map(|run| {
-            let (_, f, k) = run[0];
+    let mut half: Vec<HalfEdge> = single_use(&edges.rows)
+        .filter(|&&(key, _, _)| key >> 32 != key & 0xffff_ffff)
+        .map(|&(_, f, k)| {
             let t = mesh.triangles[f as usize];
             HalfEdge { from: t[(k as usize + 1) % 3], to: t[k as usize], face: f }
         })
@@ -141,7 +138,7 @@ pub fn fill_holes(mesh: &mut TriMesh, options: &HoleFillOptions) -> FilledHoles 
     out.report.loops = loops.len();
     let normal_of = |mesh: &TriMesh, f: u32| -> Option<Point3> {
         let [a, b, c] = mesh.corners(f as usize);
-        unit(cross(sub(b, a), sub(c, a)))
+        normalize(cross(sub(b, a), sub(c, a)))
     };
     let mut triangles: Vec<[u32; 3]> = Vec::new();
     for l in loops {
@@ -182,69 +179,31 @@ fn edge_key(a: u32, b: u32) -> u64 {
     ((a.min(b) as u64) << 32) | a.max(b) as u64
 }
 
-/// Every triangle side as (edge key, triangle, corner k: the side from corner k to k + 1),
-/// sorted by key (degenerate sides left out): bucketed by the lower vertex, each short bucket
-/// sorted, so linear in the mesh size up to the buckets' sorts.
+/// The mesh's edges ([`edges_by_key`]), with lookups by edge.
 struct EdgeTable {
     rows: Vec<(u64, u32, u8)>,
-    /// Start of each lower vertex's bucket in `rows`.
-    start: Vec<u32>,
 }
 
 impl EdgeTable {
     fn new(triangles: &[[u32; 3]], num_vertices: usize) -> EdgeTable {
-        let mut start = vec![0u32; num_vertices + 1];
-        for t in triangles {
-            for k in 0..3 {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                if a != b {
-                    start[a.min(b) as usize + 1] += 1;
-                }
-            }
-        }
-        for v in 0..num_vertices {
-            start[v + 1] += start[v];
-        }
-        let mut next = start.clone();
-        let mut rows = vec![(0u64, 0u32, 0u8); start[num_vertices] as usize];
-        for (f, t) in triangles.iter().enumerate() {
-            for k in 0..3 {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                if a != b {
-                    let slot = &mut next[a.min(b) as usize];
-                    rows[*slot as usize] = (edge_key(a, b), f as u32, k as u8);
-                    *slot += 1;
-                }
-            }
-        }
-        for v in 0..num_vertices {
-            rows[start[v] as usize..start[v + 1] as usize].sort_unstable();
-        }
-        EdgeTable { rows, start }
+        EdgeTable { rows: edges_by_key(triangles, num_vertices) }
+    }
+
+    /// The rows of edge `key`.
+    fn of(&self, key: u64) -> &[(u64, u32, u8)] {
+        let lo = self.rows.partition_point(|r| r.0 < key);
+        let hi = self.rows[lo..].partition_point(|r| r.0 == key);
+        &self.rows[lo..lo + hi]
     }
 
     /// The triangles using the edge `key`, each as (the vertex its side starts from, triangle).
     fn uses(&self, key: u64, triangles: &[[u32; 3]]) -> Vec<(u32, u32)> {
-        let v = (key >> 32) as usize;
-        let Some(&lo) = self.start.get(v) else { return Vec::new() };
-        self.rows[lo as usize..self.start[v + 1] as usize]
-            .iter()
-            .filter(|r| r.0 == key)
-            .map(|&(_, f, k)| (triangles[f as usize][k as usize], f))
-            .collect()
+        self.of(key).iter().map(|&(_, f, k)| (triangles[f as usize][k as usize], f)).collect()
     }
 
     fn contains(&self, key: u64) -> bool {
-        let v = (key >> 32) as usize;
-        let Some(&lo) = self.start.get(v) else { return false };
-        let row = &self.rows[lo as usize..self.start[v + 1] as usize];
-        row.iter().any(|r| r.0 == key)
+        !self.of(key).is_empty()
     }
-}
-
-fn unit(v: Point3) -> Option<Point3> {
-    let l = norm(v);
-    (l > 0.0 && l.is_finite()).then(|| scale(v, 1.0 / l))
 }
 
 /// Splits the boundary half-edges (sorted by `from`) into simple loops, each a list of indices
@@ -479,7 +438,7 @@ mod tests {
     /// between its triangle and the existing neighbour.
     fn weight_of(p: &[Point3], beside: &[Option<Point3>], tris: &[[usize; 3]]) -> Weight {
         let n = p.len();
-        let normal = |t: &[usize; 3]| unit(cross(sub(p[t[1]], p[t[0]]), sub(p[t[2]], p[t[0]])));
+        let normal = |t: &[usize; 3]| normalize(cross(sub(p[t[1]], p[t[0]]), sub(p[t[2]], p[t[0]])));
         let mut by_edge: HashMap<(usize, usize), Vec<usize>> = HashMap::new();
         let mut area = 0.0;
         for (j, t) in tris.iter().enumerate() {
@@ -531,9 +490,19 @@ mod tests {
                 [r * a.cos(), r * a.sin(), rng.random_range(-0.5..0.5)]
             })
             .collect();
-        let beside =
-            (0..n).map(|_| unit([rng.random_range(-0.5..0.5), rng.random_range(-0.5..0.5), 1.0])).collect();
+        let beside = (0..n)
+            .map(|_| normalize([rng.random_range(-0.5..0.5), rng.random_range(-0.5..0.5), 1.0]))
+            .collect();
         (p, beside)
+    }
+
+    /// The triangulation of the polygon `p` with every diagonal allowed, with or without the
+    /// angles, as polygon indices, and its weight; it has n − 2 triangles.
+    fn triangulated(p: &[Point3], beside: &[Option<Point3>], angles: bool) -> (Weight, Vec<[usize; 3]>) {
+        let mut got = Vec::new();
+        let w = triangulate_by(p, beside, |_, _| true, angles, &mut got).expect("a triangulation");
+        assert_eq!(got.len(), p.len() - 2);
+        (w, got.iter().map(|t| t.map(|v| v as usize)).collect())
     }
 
     #[test]
@@ -544,10 +513,7 @@ mod tests {
         for trial in 0..60 {
             let n = 4 + trial % 6;
             let (p, beside) = random_loop(&mut rng, n);
-            let mut got = Vec::new();
-            let w = triangulate_by(&p, &beside, |_, _| true, false, &mut got).unwrap();
-            assert_eq!(got.len(), n - 2);
-            let got: Vec<[usize; 3]> = got.iter().map(|t| t.map(|v| v as usize)).collect();
+            let (w, got) = triangulated(&p, &beside, false);
             let best = all_triangulations(0, n - 1)
                 .iter()
                 .map(|t| weight_of(&p, &beside, t).area)
@@ -568,10 +534,7 @@ mod tests {
         for trial in 0..60 {
             let n = 4 + trial % 6;
             let (p, beside) = random_loop(&mut rng, n);
-            let mut got = Vec::new();
-            let w = triangulate_by(&p, &beside, |_, _| true, true, &mut got).unwrap();
-            assert_eq!(got.len(), n - 2);
-            let got: Vec<[usize; 3]> = got.iter().map(|t| t.map(|v| v as usize)).collect();
+            let (w, got) = triangulated(&p, &beside, true);
             let real = weight_of(&p, &beside, &got);
             assert!((w.bend - real.bend).abs() < 1e-12, "trial {trial}: {} vs {}", w.bend, real.bend);
             assert!((w.area - real.area).abs() < 1e-12, "trial {trial}");

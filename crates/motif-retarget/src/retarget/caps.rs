@@ -36,10 +36,10 @@ use std::collections::{HashMap, HashSet};
 use earcut::Earcut;
 use foldhash::fast::FixedState;
 use motif_core::geometry::Point3;
-use motif_core::mesh::{TriMesh, UnionFind};
+use motif_core::mesh::{TriMesh, UnionFind, edges_by_key, single_use};
 
 use super::canonical::Lattice;
-use super::stitch::{edges_by_key, for_each_earlier_within, single_use, split_t_junctions};
+use super::stitch::{for_each_earlier_within, split_t_junctions};
 use super::voxels::VoxelGrid;
 
 /// How close to a voxel face plane (in cells) a loop's vertices must lie.

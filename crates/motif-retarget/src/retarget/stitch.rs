@@ -19,7 +19,7 @@ use foldhash::fast::FixedState;
 
 use motif_core::geometry::{Point3, add, dist2, dot, scale, sub};
 use motif_core::hole_fill::{HoleFillOptions, HoleFillReport, fill_holes};
-use motif_core::mesh::{TriMesh, UnionFind};
+use motif_core::mesh::{TriMesh, UnionFind, edges_by_key, single_use};
 
 use super::canonical::Lattice;
 use super::caps::{Capped, cap_openings};
@@ -372,42 +372,6 @@ pub(super) fn split_t_junctions(mesh: &mut TriMesh, triangle_voxels: &mut Vec<u3
     true
 }
 
-/// Every edge of `triangles` as (key, triangle, corner k), the edge running from corner k to
-/// corner k + 1 and its key `min << 32 | max` of its vertices, sorted by (key, triangle, corner):
-/// equal keys (one edge's uses) are adjacent. Bucketed by the smaller vertex (a counting pass),
-/// then each short bucket sorted, which is several times faster than one sort of all edges.
-pub(super) fn edges_by_key(triangles: &[[u32; 3]], num_vertices: usize) -> Vec<(u64, u32, u8)> {
-    let mut start = vec![0u32; num_vertices + 1];
-    for t in triangles {
-        for k in 0..3 {
-            start[t[k].min(t[(k + 1) % 3]) as usize + 1] += 1;
-        }
-    }
-    for v in 0..num_vertices {
-        start[v + 1] += start[v];
-    }
-    let mut fill = start.clone();
-    let mut keys = vec![(0u64, 0u32, 0u8); 3 * triangles.len()];
-    for (f, t) in triangles.iter().enumerate() {
-        for k in 0..3 {
-            let (a, b) = (t[k], t[(k + 1) % 3]);
-            let slot = &mut fill[a.min(b) as usize];
-            keys[*slot as usize] = (((a.min(b) as u64) << 32) | a.max(b) as u64, f as u32, k as u8);
-            *slot += 1;
-        }
-    }
-    for v in 0..num_vertices {
-        keys[start[v] as usize..start[v + 1] as usize].sort_unstable();
-    }
-    keys
-}
-
-/// The entries of [`edges_by_key`] output whose edge no other entry shares: the edges used by one
-/// triangle only.
-pub(super) fn single_use(keys: &[(u64, u32, u8)]) -> impl Iterator<Item = &(u64, u32, u8)> {
-    keys.chunk_by(|a, b| a.0 == b.0).filter(|run| run.len() == 1).map(|run| &run[0])
-}
-
 /// Connected components (through shared vertices, counting only components with triangles) and
 /// boundary edges (used by one triangle) of a mesh. On [`edges_by_key`], several times faster than
 /// [`TriMesh::edge_stats`] and [`TriMesh::components`], which hash every edge; this runs on every
@@ -479,20 +443,6 @@ mod tests {
         found.sort_unstable();
         assert!(expected.len() > 300, "the test scatters many close pairs: {}", expected.len());
         assert_eq!(found, expected);
-    }
-
-    #[test]
-    fn edges_by_key_equal_one_global_sort() {
-        let m = motif_core::procedural::generate("facade", 0).unwrap().mesh;
-        let mut expected: Vec<(u64, u32, u8)> = Vec::new();
-        for (f, t) in m.triangles.iter().enumerate() {
-            for k in 0..3 {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                expected.push((((a.min(b) as u64) << 32) | a.max(b) as u64, f as u32, k as u8));
-            }
-        }
-        expected.sort_unstable();
-        assert_eq!(edges_by_key(&m.triangles, m.positions.len()), expected);
     }
 
     #[test]
