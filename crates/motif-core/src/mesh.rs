@@ -159,25 +159,24 @@ impl TriMesh {
     /// Counts distinct edges, boundary edges (one triangle), non-manifold edges (three or more)
     /// and misoriented edges (see [`EdgeStats::misoriented`]).
     pub fn edge_stats(&self) -> EdgeStats {
-        // Per undirected edge: triangles using it, and those running low → high minus the others.
-        let mut count: HashMap<(u32, u32), (u32, i32)> = HashMap::with_capacity(self.triangles.len() * 2);
-        for t in &self.triangles {
-            for k in 0..3 {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                if a == b {
-                    continue;
-                }
-                let e = count.entry((a.min(b), a.max(b))).or_insert((0, 0));
-                e.0 += 1;
-                e.1 += if a < b { 1 } else { -1 };
+        let keys = edges_by_key(&self.triangles, self.positions.len());
+        let mut stats = EdgeStats { edges: 0, boundary: 0, non_manifold: 0, misoriented: 0 };
+        for run in keys.chunk_by(|a, b| a.0 == b.0) {
+            let (low, high) = ((run[0].0 >> 32) as u32, run[0].0 as u32);
+            if low == high {
+                continue; // a degenerate side is no edge
             }
+            stats.edges += 1;
+            stats.boundary += usize::from(run.len() == 1);
+            stats.non_manifold += usize::from(run.len() >= 3);
+            // Triangles running low → high minus those running high → low.
+            let net: i64 = run
+                .iter()
+                .map(|&(_, f, k)| if self.triangles[f as usize][k as usize] == low { 1 } else { -1 })
+                .sum();
+            stats.misoriented += usize::from(net.abs() >= 2);
         }
-        EdgeStats {
-            edges: count.len(),
-            boundary: count.values().filter(|c| c.0 == 1).count(),
-            non_manifold: count.values().filter(|c| c.0 >= 3).count(),
-            misoriented: count.values().filter(|c| c.1.abs() >= 2).count(),
-        }
+        stats
     }
 
     /// Connected components through shared vertices (union–find).

@@ -266,6 +266,7 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     }
     let r = &res.report;
     if !crate::output::json_on_stdout(&a.json.json) && !g.quiet {
+        let input_boundary = mesh.edge_stats().boundary;
         for (k, o) in principal.iter().enumerate() {
             println!("offset {k}: [{:.6}, {:.6}, {:.6}]  steps {:+}", o[0], o[1], o[2], steps[k]);
         }
@@ -290,7 +291,7 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 r.filled_holes,
                 r.fill_triangles,
                 r.output_boundary_edges,
-                mesh.edge_stats().boundary
+                input_boundary
             );
         }
         if r.infinite_seams > 0 {
@@ -319,10 +320,7 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                  input, or beyond its end when the input is only a few cells long along a grown \
                  direction); the output has {} open boundary edges (the input has {}). {others}; \
                  --preview PNG shows the result",
-                r.infinite_seams,
-                r.seams,
-                r.output_boundary_edges,
-                mesh.edge_stats().boundary
+                r.infinite_seams, r.seams, r.output_boundary_edges, input_boundary
             );
         }
         eprintln!("wrote {}", a.output.display());
