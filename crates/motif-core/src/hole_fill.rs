@@ -21,11 +21,13 @@
 //! and is cut off. So a boundary that touches itself at a vertex (two holes sharing a corner,
 //! which is common along seams) gives two simple loops instead of one loop visiting a vertex
 //! twice. A walk can also end at a vertex with no unused outgoing half-edge, where the boundary
-//! meets a non-manifold edge: when an existing edge leads from there back to the walk's start and
-//! is used by an odd number (three or more) of triangles, fewer of them running that way than
-//! back, the walk is closed along it. That edge then has as many triangles each way: where a
-//! part's face ends on the edge at which two other faces meet (a beam cut against the side of a
-//! post on the gridbeam shelf), the fill completes the part. Other such walks are left open.
+//! meets a non-manifold edge: when a chain of at most 8 existing edges leads from there back to
+//! the walk's start, each used by an odd number (three or more) of triangles, fewer of them
+//! running the walk's way than back, the walk is closed along the chain (the one of fewest edges,
+//! found breadth first). Those edges then have as many triangles each way: where a part's face
+//! ends on the edge at which two other faces meet (a beam cut against the side of a post on the
+//! gridbeam shelf; a heat sink's fin cut where its foot, split into three short edges, meets the
+//! base), the fill completes the part. Other such walks are left open.
 //!
 //! **Triangulation.** For a loop `v₀ … v_{n−1}`, the weight of the best triangulation of the
 //! sub-polygon `vᵢ … v_k` is `W(i, k) = min_{i<m<k} W(i, m) ⊕ W(m, k) ⊕ w(i, m, k)`, where a
@@ -95,6 +97,9 @@ pub struct FilledHoles {
     pub neighbour: Vec<u32>,
 }
 
+/// Longest chain of odd edges along which a walk is closed (module documentation).
+const MAX_CLOSING_CHAIN: usize = 8;
+
 /// A boundary half-edge on the hole side: `from → to`, the existing triangle `face` uses `to →
 /// from`.
 #[derive(Debug, Clone, Copy)]
@@ -121,17 +126,62 @@ pub fn fill_holes(mesh: &mut TriMesh, options: &HoleFillOptions) -> FilledHoles 
     half.sort_by_key(|h| (h.from, h.to));
     // Edges the fills add, checked besides the table.
     let mut added: HashSet<u64> = HashSet::new();
-    // A walk that ends where an existing edge back to its start is used by an odd number of
-    // triangles, three or more (a part's face ends on an edge where two other faces meet), is
-    // closed along that edge: with the fill's triangle the edge has an even number, as many each
-    // way when fewer existing ones run from the walk's end to its start than back.
+    // A walk that ends where a chain of existing edges, each used by an odd number of triangles
+    // (three or more), leads back to its start (a part's face ends on edges where two other faces
+    // meet) is closed along that chain: with the fill's triangles each edge of it has an even
+    // number, as many each way when fewer existing ones run the walk's way than back.
+    let mut odd_next: HashMap<u32, Vec<u32>> = HashMap::new();
+    for group in edges.rows.chunk_by(|a, b| a.0 == b.0) {
+        let (key, n) = (group[0].0, group.len());
+        if n >= 3 && n % 2 == 1 {
+            let (a, b) = ((key >> 32) as u32, key as u32);
+            odd_next.entry(a).or_default().push(b);
+            odd_next.entry(b).or_default().push(a);
+        }
+    }
     let mut closed_along: HashSet<u64> = HashSet::new();
-    let close = |v: u32, s: u32| -> Option<u32> {
-        let key = edge_key(v, s);
-        let uses = edges.uses(key, &mesh.triangles);
-        let forward = uses.iter().filter(|&&(a, _)| a == v).count();
-        let odd = uses.len() >= 3 && uses.len() % 2 == 1 && 2 * forward < uses.len();
-        (odd && closed_along.insert(key)).then(|| uses[0].1)
+    let close = |v: u32, s: u32, on_path: &dyn Fn(u32) -> bool| -> Option<Vec<HalfEdge>> {
+        // The existing triangle to take the normal from, when the edge a → b may close a walk.
+        let closable = |a: u32, b: u32| -> Option<u32> {
+            let key = edge_key(a, b);
+            let uses = edges.uses(key, &mesh.triangles);
+            let forward = uses.iter().filter(|&&(from, _)| from == a).count();
+            (2 * forward < uses.len() && !closed_along.contains(&key)).then(|| uses[0].1)
+        };
+        // Breadth first, fewest edges first, neighbours in ascending order: deterministic.
+        let mut came_from: HashMap<u32, (u32, u32)> = HashMap::new();
+        let mut frontier = vec![v];
+        for _ in 0..MAX_CLOSING_CHAIN {
+            let mut next = Vec::new();
+            for &a in &frontier {
+                let mut around = odd_next.get(&a).cloned().unwrap_or_default();
+                around.sort_unstable();
+                for b in around {
+                    if b == v || came_from.contains_key(&b) || (b != s && on_path(b)) {
+                        continue;
+                    }
+                    let Some(face) = closable(a, b) else { continue };
+                    came_from.insert(b, (a, face));
+                    if b == s {
+                        let mut chain = Vec::new();
+                        let mut to = s;
+                        while to != v {
+                            let (from, face) = came_from[&to];
+                            chain.push(HalfEdge { from, to, face });
+                            to = from;
+                        }
+                        chain.reverse();
+                        for h in &chain {
+                            closed_along.insert(edge_key(h.from, h.to));
+                        }
+                        return Some(chain);
+                    }
+                    next.push(b);
+                }
+            }
+            frontier = next;
+        }
+        None
     };
     let (loops, closing) = simple_loops(&half, &mut out.report.open_edges, close);
     half.extend(closing);
@@ -210,13 +260,13 @@ impl EdgeTable {
 /// into `half` followed by the returned closing half-edges (index `half.len() + j` is the
 /// `j`-th of them). Walks start where a chain of boundary edges starts (a vertex with more
 /// boundary edges leaving than arriving), then anywhere. A walk that ends at a vertex `v` with no
-/// unused boundary edge left is closed when `close(v, s)`, `s` its first vertex, gives a triangle
-/// along an existing edge from `v` to `s` (see [`fill_holes`]); otherwise its edges are added to
-/// `open`.
+/// unused boundary edge left is closed when `close(v, s, on_path)`, `s` its first vertex, gives a
+/// chain of existing edges from `v` to `s` that avoids the walk's other vertices (see
+/// [`fill_holes`]); otherwise its edges are added to `open`.
 fn simple_loops(
     half: &[HalfEdge],
     open: &mut usize,
-    mut close: impl FnMut(u32, u32) -> Option<u32>,
+    mut close: impl FnMut(u32, u32, &dyn Fn(u32) -> bool) -> Option<Vec<HalfEdge>>,
 ) -> (Vec<Vec<usize>>, Vec<HalfEdge>) {
     let mut first_out: HashMap<u32, usize> = HashMap::new();
     let mut surplus: HashMap<u32, i64> = HashMap::new();
@@ -272,11 +322,14 @@ fn simple_loops(
                 Some(n) => e = n,
                 None => {
                     let s = half[path[0]].from;
-                    match close(v, s) {
-                        Some(face) if path.len() >= 2 => {
-                            closing.push(HalfEdge { from: v, to: s, face });
+                    let on = |x: u32| on_path.contains_key(&x);
+                    match close(v, s, &on) {
+                        Some(chain) if path.len() + chain.len() >= 3 => {
                             let mut cycle = std::mem::take(&mut path);
-                            cycle.push(half.len() + closing.len() - 1);
+                            for h in chain {
+                                closing.push(h);
+                                cycle.push(half.len() + closing.len() - 1);
+                            }
                             loops.push(cycle);
                         }
                         _ => *open += path.len(),
@@ -624,6 +677,32 @@ mod tests {
                 }
             }
             assert!(net.values().all(|&n| n == 0), "{fin:?}: every edge used as often each way");
+        }
+    }
+
+    #[test]
+    fn a_walk_ending_on_a_chain_of_shared_edges_is_closed_along_it() {
+        // The cube's edge 0–1 bent outwards through a new vertex m (the two faces along it
+        // re-triangulated), and a one-sided flap (0, m, 1) or (1, m, 0) standing on the two halves:
+        // each half has three triangles and the flap's third side is open. The walk along it ends
+        // at one end of the chain and is closed along both halves: the flap gets its back.
+        let m = 8;
+        for flap in [[0, m, 1], [1, m, 0]] {
+            let mut mesh = cube();
+            mesh.positions.push([0.5, -0.2, -0.2]);
+            // Faces z = 0 ([0, 2, 3, 1]) and y = 0 ([0, 1, 5, 4]) through m.
+            mesh.triangles.retain(|t| ![[0, 2, 3], [0, 3, 1], [0, 1, 5], [0, 5, 4]].contains(t));
+            mesh.triangles.extend([[0, 2, m], [2, 3, m], [3, 1, m], [0, m, 4], [m, 5, 4], [m, 1, 5]]);
+            assert_closed_and_oriented(&mesh);
+            let n = mesh.triangles.len();
+            mesh.triangles.push(flap);
+            let f = fill_holes(&mut mesh, &HoleFillOptions::default());
+            assert_eq!(f.report, HoleFillReport { loops: 1, filled: 1, triangles: 1, open_edges: 0 });
+            let back = [flap[2], flap[1], flap[0]];
+            let added = mesh.triangles[n + 1];
+            assert!((0..3).any(|r| [0, 1, 2].map(|k| back[(k + r) % 3]) == added), "{flap:?}: {added:?}");
+            let stats = mesh.edge_stats();
+            assert_eq!((stats.boundary, stats.misoriented), (0, 0), "{flap:?}");
         }
     }
 
