@@ -72,6 +72,19 @@
 //!
 //! Both move street medium up by 0.01 and lose as much or more on hard scenes.
 //!
+//! Rejected after measuring with a prototype that replays steps 3–4 on the candidates a detection
+//! dumps (it reproduces the default's figures exactly), seeds 1–6 | 7–12, from 0.933 / 0.906 /
+//! 0.667, 0.911 / 0.788 / 0.602 | 0.932 / 0.886 / 0.682, 0.935 / 0.826 / 0.602 (2026-11-27):
+//! - Several cuts, 0.4, 0.3 and 0.2 in turn, each grouping the candidates the larger cuts left,
+//!   with the contrast shell as wide as now (1.5 cuts): 0.933 / 0.905 / 0.670, 0.919 / 0.815 /
+//!   0.607 | 0.932 / 0.883 / 0.665, 0.941 / 0.849 / 0.598. With a shell of fixed width 0.3
+//!   beyond the cut: 0.933 / 0.905 / 0.642, 0.919 / 0.804 / 0.627 | 0.932 / 0.883 / 0.661, 0.941
+//!   / 0.855 / 0.607. The aim was a hard street's lamp posts (one scanner: 3.8–5.2 m tall and
+//!   1.0–1.7 m along the arm on seed 1), which group only at 0.4; but at 0.4 seven to nine
+//!   clutter objects of random sizes group as tightly on hard facades, and with the wide shell
+//!   the lamp posts fail the contrast test (5 inside, 4 in the shell).
+//! - One cut of 0.3 or 0.4 alone: street easy falls to 0.885 or 0.847 on seeds 1–6.
+//!
 //! Cost: candidates need five features each and the detector keeps at most
 //! [`crate::preprocess::PreprocessOptions::max_features`] features (4,000), so there are at most
 //! 800 and the naive average linkage stays under a second (0.79 s measured for 800 candidates
