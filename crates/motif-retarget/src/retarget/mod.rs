@@ -64,7 +64,8 @@
 //! - **Start labelling**: the identity is infeasible when growing; we start from one seam per
 //!   direction in the middle of the model (feasible, few seams), see `energy.rs`.
 //! - **Seams** are welded where copies of a vertex that was shared across voxel faces meet again
-//!   (within 10⁻⁶ of a cell); parts that merely touch stay separate, as in the input.
+//!   (within 10⁻³ of a cell, [`RetargetOptions::weld_tolerance`]); parts that merely touch stay
+//!   separate, as in the input.
 //! - **Dense baseline** (4.5): the same pipeline with regular axis-aligned offsets of 0.1 in
 //!   normalised space and no canonical map; `steps` (along the principal offsets) become
 //!   `round(gₐ / 0.1)` regular steps along each world axis `a`, `g = Σ stepsᵢ vᵢ`.
