@@ -25,9 +25,9 @@
 //! the walk's start, each used by an odd number (three or more) of triangles, fewer of them
 //! running the walk's way than back, the walk is closed along the chain (the one of fewest edges,
 //! found breadth first). Those edges then have as many triangles each way: where a part's face
-//! ends on the edge at which two other faces meet (a beam cut against the side of a post on the
-//! gridbeam shelf; a heat sink's fin cut where its foot, split into three short edges, meets the
-//! base), the fill completes the part. Other such walks are left open.
+//! ends on the edges at which two other faces meet (a heat sink's fin cut where its foot, split
+//! into three short edges, meets the base), the fill completes the part. Other such walks are
+//! left open.
 //!
 //! **Triangulation.** For a loop `v₀ … v_{n−1}`, the weight of the best triangulation of the
 //! sub-polygon `vᵢ … v_k` is `W(i, k) = min_{i<m<k} W(i, m) ⊕ W(m, k) ⊕ w(i, m, k)`, where a
@@ -140,7 +140,7 @@ pub fn fill_holes(mesh: &mut TriMesh, options: &HoleFillOptions) -> FilledHoles 
         }
     }
     let mut closed_along: HashSet<u64> = HashSet::new();
-    let close = |v: u32, s: u32, on_path: &dyn Fn(u32) -> bool| -> Option<Vec<HalfEdge>> {
+    let close = |v: u32, s: u32, walked: usize, on_path: &dyn Fn(u32) -> bool| -> Option<Vec<HalfEdge>> {
         // The existing triangle to take the normal from, when the edge a → b may close a walk.
         let closable = |a: u32, b: u32| -> Option<u32> {
             let key = edge_key(a, b);
@@ -171,6 +171,10 @@ pub fn fill_holes(mesh: &mut TriMesh, options: &HoleFillOptions) -> FilledHoles 
                             to = from;
                         }
                         chain.reverse();
+                        // A loop needs three edges; a chain that cannot make one stays unused.
+                        if walked + chain.len() < 3 {
+                            return None;
+                        }
                         for h in &chain {
                             closed_along.insert(edge_key(h.from, h.to));
                         }
@@ -260,13 +264,14 @@ impl EdgeTable {
 /// into `half` followed by the returned closing half-edges (index `half.len() + j` is the
 /// `j`-th of them). Walks start where a chain of boundary edges starts (a vertex with more
 /// boundary edges leaving than arriving), then anywhere. A walk that ends at a vertex `v` with no
-/// unused boundary edge left is closed when `close(v, s, on_path)`, `s` its first vertex, gives a
-/// chain of existing edges from `v` to `s` that avoids the walk's other vertices (see
-/// [`fill_holes`]); otherwise its edges are added to `open`.
+/// unused boundary edge left is closed when `close(v, s, edges, on_path)`, `s` its first vertex
+/// and `edges` its length, gives a chain of existing edges from `v` to `s` that avoids the walk's
+/// other vertices and makes a loop of three edges or more (see [`fill_holes`]); otherwise its
+/// edges are added to `open`.
 fn simple_loops(
     half: &[HalfEdge],
     open: &mut usize,
-    mut close: impl FnMut(u32, u32, &dyn Fn(u32) -> bool) -> Option<Vec<HalfEdge>>,
+    mut close: impl FnMut(u32, u32, usize, &dyn Fn(u32) -> bool) -> Option<Vec<HalfEdge>>,
 ) -> (Vec<Vec<usize>>, Vec<HalfEdge>) {
     let mut first_out: HashMap<u32, usize> = HashMap::new();
     let mut surplus: HashMap<u32, i64> = HashMap::new();
@@ -323,8 +328,8 @@ fn simple_loops(
                 None => {
                     let s = half[path[0]].from;
                     let on = |x: u32| on_path.contains_key(&x);
-                    match close(v, s, &on) {
-                        Some(chain) if path.len() + chain.len() >= 3 => {
+                    match close(v, s, path.len(), &on) {
+                        Some(chain) => {
                             let mut cycle = std::mem::take(&mut path);
                             for h in chain {
                                 closing.push(h);
