@@ -139,6 +139,10 @@ pub fn fill_holes(mesh: &mut TriMesh, options: &HoleFillOptions) -> FilledHoles 
             odd_next.entry(b).or_default().push(a);
         }
     }
+    // Neighbours in ascending order, so that the search below is deterministic.
+    for around in odd_next.values_mut() {
+        around.sort_unstable();
+    }
     let mut closed_along: HashSet<u64> = HashSet::new();
     let close = |v: u32, s: u32, walked: usize, on_path: &dyn Fn(u32) -> bool| -> Option<Vec<HalfEdge>> {
         // The existing triangle to take the normal from, when the edge a → b may close a walk.
@@ -148,15 +152,13 @@ pub fn fill_holes(mesh: &mut TriMesh, options: &HoleFillOptions) -> FilledHoles 
             let forward = uses.iter().filter(|&&(from, _)| from == a).count();
             (2 * forward < uses.len() && !closed_along.contains(&key)).then(|| uses[0].1)
         };
-        // Breadth first, fewest edges first, neighbours in ascending order: deterministic.
+        // Breadth first: the chain of fewest edges.
         let mut came_from: HashMap<u32, (u32, u32)> = HashMap::new();
         let mut frontier = vec![v];
         for _ in 0..MAX_CLOSING_CHAIN {
             let mut next = Vec::new();
             for &a in &frontier {
-                let mut around = odd_next.get(&a).cloned().unwrap_or_default();
-                around.sort_unstable();
-                for b in around {
+                for &b in odd_next.get(&a).map_or(&[][..], Vec::as_slice) {
                     if b == v || came_from.contains_key(&b) || (b != s && on_path(b)) {
                         continue;
                     }
