@@ -373,8 +373,8 @@ pub(super) fn split_t_junctions(mesh: &mut TriMesh, triangle_voxels: &mut Vec<u3
 }
 
 /// Connected components (through shared vertices, counting only components with triangles) and
-/// boundary edges (used by one triangle) of a mesh. On [`edges_by_key`], several times faster than
-/// [`TriMesh::edge_stats`] and [`TriMesh::components`], which hash every edge; this runs on every
+/// boundary edges (used by one triangle, [`TriMesh::edge_stats`]) of a mesh. The components
+/// without [`TriMesh::components`]'s per-vertex table and hash map, since this runs on every
 /// interactive solve.
 pub(crate) fn mesh_stats(mesh: &TriMesh) -> (usize, usize) {
     let mut uf = UnionFind::new(mesh.positions.len());
@@ -382,9 +382,6 @@ pub(crate) fn mesh_stats(mesh: &TriMesh) -> (usize, usize) {
         uf.union(t[0] as usize, t[1] as usize);
         uf.union(t[0] as usize, t[2] as usize);
     }
-    let keys = edges_by_key(&mesh.triangles, mesh.positions.len());
-    // Degenerate edges (a == b) are no boundary.
-    let boundary = single_use(&keys).filter(|e| e.0 >> 32 != e.0 & 0xffff_ffff).count();
     let mut seen = vec![false; mesh.positions.len()];
     let mut components = 0;
     for t in &mesh.triangles {
@@ -394,7 +391,7 @@ pub(crate) fn mesh_stats(mesh: &TriMesh) -> (usize, usize) {
             components += 1;
         }
     }
-    (components, boundary)
+    (components, mesh.edge_stats().boundary)
 }
 
 #[cfg(test)]
