@@ -9,9 +9,13 @@
 //! post (764 open edges for +1,+1). When the input is closed, the user expects a closed output.
 //!
 //! **What.** After welding, the open boundary is traced into loops (each boundary edge followed
-//! from its end vertex; loops through a vertex with several outgoing boundary edges are left
-//! alone). A loop is an opening of a cut when all its vertices lie on one interior voxel face
-//! plane of the output grid (within 10⁻³ of a cell). The loops of one plane are nested by
+//! from its end vertex). Where two openings touch at a vertex (two boundary edges leave it), the
+//! edge arriving from one fan of triangles continues with the edge leaving the other fan, so that
+//! each opening is its own loop ([`pinch_exits`]); vertices with more openings are left alone.
+//! A loop is an opening of a cut when all its vertices lie on one interior voxel face plane of
+//! the output grid (within 10⁻³ of a cell), or when it folds over a voxel edge, one run on each
+//! of two perpendicular face planes; such a loop is split along the edge into one loop per plane
+//! ([`split_at_edge`]). The loops of one plane are nested by
 //! containment (even depth: an outline, odd depth: a hole in the outline around it, such as the
 //! inside of a hollow beam, or the cut of another copy's part that touches the plane inside it)
 //! and each outline with its holes is triangulated by ear clipping (the `earcut` crate, a port of
@@ -24,6 +28,17 @@
 //! loop edge instead of against it (where a loop crosses itself by a sliver, as two copies'
 //! overlapping outlines do, ear clipping covers the overlap twice, once each way). What stays
 //! open is left to the hole fill ([`motif_core::hole_fill`], `RetargetOptions::fill_holes`).
+//! A plane where ear clipping fails (loops that cross, as where two copies' sections overlap by a
+//! sliver, or a hole that runs with its outline) is capped by the winding rule instead: a
+//! constrained Delaunay triangulation of all its loops (`spade`), crossings split, keeping the
+//! triangles the loops wind around once, each turned against its loops ([`winding_caps`]).
+//!
+//! On the CGAL cheese grown by +1 along its first two offsets (`motif retarget cgal_cheese.off
+//! --steps 1,1,0`) an opening folds over a voxel edge, touches another at a vertex, and its part
+//! on one plane is two copies' sections overlapping by a sliver. Before these three steps it was
+//! one loop of 609 vertices, which the hole fill (limit 600 vertices) left open; filling it
+//! anyway spanned a flat sheet across the cavity. Now caps close it with the cavity's
+//! cross-sections cut out, and the fill adds nothing.
 //! This is the cap a mesh slicer puts on a cut (Blender's bisect with fill, trimesh's
 //! `slice_plane(cap=True)`); where two copies' parts touch at the plane, the caps make two closed
 //! parts touching, or, when one's opening lies inside the other's, one surface joined around it.
@@ -37,8 +52,10 @@ use earcut::Earcut;
 use foldhash::fast::FixedState;
 use motif_core::geometry::Point3;
 use motif_core::mesh::{TriMesh, UnionFind, edges_by_key, single_use};
+use spade::handles::FixedVertexHandle;
+use spade::{ConstrainedDelaunayTriangulation, HasPosition, Point2, Triangulation};
 
-use super::canonical::Lattice;
+use super::canonical::{Lattice, Mat3, invert3, mul3};
 use super::stitch::{for_each_earlier_within, split_t_junctions};
 use super::voxels::VoxelGrid;
 
@@ -56,6 +73,10 @@ pub(crate) struct Capped {
     pub triangles: usize,
     /// Coincident boundary vertices merged first.
     pub merged: usize,
+    /// Loops around a voxel edge split into one loop on each of its two faces.
+    pub split_loops: usize,
+    /// Planes whose openings were capped by the winding rule (loops that cross).
+    pub winding_planes: usize,
 }
 
 /// A boundary loop on a voxel face plane: mesh vertices in the order of the boundary edges, their
@@ -103,8 +124,30 @@ pub(crate) fn cap_openings(
             branching.push(a);
         }
     }
-    for a in branching {
-        next.remove(&a);
+    branching.sort_unstable();
+    branching.dedup();
+    // At a vertex where two openings touch (two boundary edges leave it), an edge arriving from
+    // one fan of triangles leaves through the other fan's edge (see `pinch_exits`).
+    let mut exits: HashMap<(u32, u32), (u32, u32), FixedState> = HashMap::default();
+    let mut rings: HashMap<u32, Vec<u32>, FixedState> = branching.iter().map(|&v| (v, Vec::new())).collect();
+    if !rings.is_empty() {
+        for (f, t) in mesh.triangles.iter().enumerate() {
+            for v in t {
+                if let Some(r) = rings.get_mut(v)
+                    && r.last() != Some(&(f as u32))
+                {
+                    r.push(f as u32);
+                }
+            }
+        }
+    }
+    for &v in &branching {
+        next.remove(&v);
+        if let Some(pairs) = pinch_exits(mesh, &keys, v, &rings[&v]) {
+            for (from, to) in pairs {
+                exits.insert((from, v), to);
+            }
+        }
     }
 
     // Loops, in order of their smallest start vertex (deterministic).
@@ -120,14 +163,19 @@ pub(crate) fn cap_openings(
         let mut first_face = u32::MAX;
         let mut v = s;
         let closed = loop {
-            let Some(&(w, f)) = next.get(&v) else { break false };
+            let step = match next.get(&v) {
+                Some(&e) => Some(e),
+                None => vertices.len().checked_sub(2).and_then(|i| exits.get(&(vertices[i], v)).copied()),
+            };
+            let Some((w, f)) = step else { break false };
             if first_face == u32::MAX {
                 first_face = f;
             }
             if w == s {
                 break true;
             }
-            if used.contains(&w) || vertices.len() > next.len() {
+            if (used.contains(&w) && !rings.contains_key(&w)) || vertices.len() > next.len() + 2 * rings.len()
+            {
                 break false;
             }
             used.insert(w);
@@ -139,23 +187,44 @@ pub(crate) fn cap_openings(
             continue;
         }
         let u: Vec<[f64; 3]> = vertices.iter().map(|&v| grid(mesh.positions[v as usize])).collect();
-        let Some(axis) = (0..3).find(|&d| {
+        let on_one = (0..3).find(|&d| {
             interior_plane(u[0][d], out_dims[d])
                 .is_some_and(|r| u.iter().all(|p| (p[d] - r).abs() <= PLANE_EPS))
-        }) else {
-            continue;
+        });
+        let parts = match on_one {
+            Some(axis) => vec![(axis, vertices, u)],
+            None => match split_at_edge(&vertices, &u, out_dims) {
+                Some(parts) => {
+                    capped.split_loops += 1;
+                    parts.into()
+                }
+                None => continue,
+            },
         };
-        let (d1, d2) = ((axis + 1) % 3, (axis + 2) % 3);
-        let plane: Vec<[f64; 2]> = u.iter().map(|p| [p[d1], p[d2]]).collect();
-        let area = signed_area(&plane);
-        let key = (axis, u[0][axis].round() as i64);
-        groups.entry(key).or_default().push((Loop { vertices, plane, area }, first_face));
+        for (axis, vertices, u) in parts {
+            let (d1, d2) = ((axis + 1) % 3, (axis + 2) % 3);
+            let plane: Vec<[f64; 2]> = u.iter().map(|p| [p[d1], p[d2]]).collect();
+            let area = signed_area(&plane);
+            let key = (axis, u[0][axis].round() as i64);
+            groups.entry(key).or_default().push((Loop { vertices, plane, area }, first_face));
+        }
     }
+
+    // Grid coordinates back to model space (the map is affine), for vertices the winding caps
+    // add where loops cross.
+    let origin = grid([0.0; 3]);
+    let columns = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]].map(|e| {
+        let g = grid(e);
+        [g[0] - origin[0], g[1] - origin[1], g[2] - origin[2]]
+    });
+    let to_grid: Mat3 = std::array::from_fn(|r| std::array::from_fn(|c| columns[c][r]));
+    let from_grid = invert3(&to_grid);
 
     let mut keys: Vec<(usize, i64)> = groups.keys().copied().collect();
     keys.sort_unstable();
     let mut earcut = Earcut::new();
     let mut out: Vec<u32> = Vec::new();
+    let mut caps: Vec<([u32; 3], u32)> = Vec::new();
     for key in keys {
         let mut loops = groups.remove(&key).unwrap_or_default();
         loops.sort_by(|a, b| b.0.area.abs().total_cmp(&a.0.area.abs()));
@@ -167,10 +236,14 @@ pub(crate) fn cap_openings(
         for i in 0..loops.len() {
             depth[i] = parent[i].map_or(0, |p| depth[p] + 1);
         }
+        caps.clear();
+        let mut closed_loops = 0;
+        let mut simple = true;
         for o in (0..loops.len()).filter(|&o| depth[o] % 2 == 0) {
             let holes: Vec<usize> = (0..loops.len()).filter(|&h| parent[h] == Some(o)).collect();
             // A hole runs against its outline (the surface is consistently oriented).
             if loops[o].0.area == 0.0 || holes.iter().any(|&h| loops[h].0.area * loops[o].0.area >= 0.0) {
+                simple = false;
                 continue;
             }
             let mut points: Vec<[f64; 2]> = loops[o].0.plane.clone();
@@ -184,39 +257,64 @@ pub(crate) fn cap_openings(
             earcut.earcut_slice(&points, &hole_starts, &mut out);
             if out.is_empty() || earcut::deviation(points.iter().copied(), &hole_starts, &out) > MAX_DEVIATION
             {
+                simple = false;
                 continue;
             }
-            // Every loop edge a cap uses must run against its triangle. A loop that crosses
-            // itself by a sliver (two copies' outlines overlapping) can pass the area test while
-            // its twisted part runs the other way, and caps there flip the surface (58 edges used
-            // twice the same way on the CGAL cheese grown by +1 along its second offset, 93 by
-            // +0,+0,+1). Those caps are left out. Earcut covers the overlap twice, once each way,
-            // so this leaves the cheese +1 closed and consistently oriented; any opening left
-            // runs consistently, and the hole fill closes it along its own edges
-            // ([`motif_core::hole_fill`]).
-            let along: HashSet<(u32, u32), FixedState> = std::iter::once(o)
-                .chain(holes.iter().copied())
-                .flat_map(|l| {
-                    let v = &loops[l].0.vertices;
-                    (0..v.len()).map(move |i| (v[i], v[(i + 1) % v.len()]))
-                })
-                .collect();
             // Caps turn against the outline's boundary edges: the opposite sign of its area.
             let want = -loops[o].0.area.signum();
-            let caps = out.chunks_exact(3).filter_map(|t| {
+            let voxel = triangle_voxels[loops[o].1 as usize];
+            caps.extend(out.chunks_exact(3).map(|t| {
                 let (a, b, c) = (t[0] as usize, t[1] as usize, t[2] as usize);
                 let s = signed_area(&[points[a], points[b], points[c]]);
                 let tri = if s * want >= 0.0 { [ids[a], ids[b], ids[c]] } else { [ids[a], ids[c], ids[b]] };
-                (!(0..3).any(|k| along.contains(&(tri[k], tri[(k + 1) % 3])))).then_some(tri)
-            });
-            let voxel = triangle_voxels[loops[o].1 as usize];
-            for tri in caps {
-                mesh.triangles.push(tri);
-                triangle_voxels.push(voxel);
-                capped.triangles += 1;
-            }
-            capped.loops += 1 + holes.len();
+                (tri, voxel)
+            }));
+            closed_loops += 1 + holes.len();
         }
+        if !simple
+            && let Some(m) = from_grid
+            && let Some(w) = winding_caps(&loops, mesh.positions.len() as u32)
+        {
+            // Loops that cross (two copies' sections overlapping, or a section folded over a
+            // voxel edge and split there) or a hole that runs with its outline: the whole plane
+            // is capped by the winding rule instead.
+            let (d1, d2) = ((key.0 + 1) % 3, (key.0 + 2) % 3);
+            for q in &w.new_points {
+                let mut u = [0.0; 3];
+                u[key.0] = key.1 as f64;
+                u[d1] = q[0];
+                u[d2] = q[1];
+                mesh.positions.push(mul3(&m, [u[0] - origin[0], u[1] - origin[1], u[2] - origin[2]]));
+            }
+            let voxel = triangle_voxels[loops[0].1 as usize];
+            caps.clear();
+            caps.extend(w.triangles.iter().map(|&t| (t, voxel)));
+            closed_loops = loops.len();
+            capped.winding_planes += 1;
+        }
+        // Every loop edge a cap uses must run against its triangle. A loop that crosses itself by
+        // a sliver (two copies' outlines overlapping) can pass the area test while its twisted
+        // part runs the other way, and caps there flip the surface (58 edges used twice the same
+        // way on the CGAL cheese grown by +1 along its second offset, 93 by +0,+0,+1). Those caps
+        // are left out. Earcut covers the overlap twice, once each way, so this leaves the cheese
+        // +1 closed and consistently oriented; any opening left runs consistently, and the hole
+        // fill closes it along its own edges ([`motif_core::hole_fill`]).
+        let along: HashSet<(u32, u32), FixedState> = loops
+            .iter()
+            .flat_map(|l| {
+                let v = &l.0.vertices;
+                (0..v.len()).map(move |i| (v[i], v[(i + 1) % v.len()]))
+            })
+            .collect();
+        for &(tri, voxel) in &caps {
+            if (0..3).any(|k| along.contains(&(tri[k], tri[(k + 1) % 3]))) {
+                continue;
+            }
+            mesh.triangles.push(tri);
+            triangle_voxels.push(voxel);
+            capped.triangles += 1;
+        }
+        capped.loops += closed_loops;
     }
     if capped.triangles > 0 && tol > 0.0 {
         split_t_junctions(mesh, triangle_voxels, tol);
@@ -225,6 +323,65 @@ pub(crate) fn cap_openings(
         mesh.remove_unreferenced_vertices();
     }
     capped
+}
+
+/// The continuations of the boundary at a pinch vertex `v` where two openings touch: two boundary
+/// edges arrive and two leave, each pair bounding one fan of triangles around `v` (a fan is
+/// followed from its leaving edge through the triangles that share an edge at `v`, once each way,
+/// to its arriving edge). An opening is the gap between two fans, so the edge arriving from one
+/// fan continues with the edge leaving the other; following the same fan would trace both
+/// openings as one figure of eight. Returns `(a, b)` pairs: the edge `a → v` continues with
+/// `v → b`. `None` (the vertex stays a dead end for the tracing) for more than two fans or a fan
+/// through an edge used by more than two triangles. `ring` lists the triangles around `v`.
+fn pinch_exits(
+    mesh: &TriMesh,
+    keys: &[(u64, u32, u8)],
+    v: u32,
+    ring: &[u32],
+) -> Option<[(u32, (u32, u32)); 2]> {
+    let uses = |a: u32, b: u32| -> &[(u64, u32, u8)] {
+        let key = ((a.min(b) as u64) << 32) | a.max(b) as u64;
+        let lo = keys.partition_point(|e| e.0 < key);
+        let hi = keys.partition_point(|e| e.0 <= key);
+        &keys[lo..hi]
+    };
+    let other = |f: u32, a: u32| -> Option<u32> {
+        // The third vertex of triangle f given its vertices v and a.
+        mesh.triangles[f as usize].into_iter().find(|&x| x != v && x != a)
+    };
+    // The boundary edges leaving v, with their triangles.
+    let mut leaving: Vec<(u32, u32)> = Vec::new();
+    for &f in ring {
+        let t = mesh.triangles[f as usize];
+        let k = t.iter().position(|&x| x == v)?;
+        let b = t[(k + 1) % 3];
+        if uses(v, b).len() == 1 {
+            leaving.push((b, f));
+        }
+    }
+    if leaving.len() != 2 {
+        return None;
+    }
+    // From each leaving edge, round its fan to the arriving edge.
+    let mut arriving = [0u32; 2];
+    for (i, &(b, f0)) in leaving.iter().enumerate() {
+        let (mut f, mut a) = (f0, b);
+        let mut steps = 0;
+        arriving[i] = loop {
+            let c = other(f, a)?; // the triangle's other vertex: its edge c → v arrives at v
+            let u = uses(v, c);
+            if u.len() == 1 {
+                break c;
+            }
+            if u.len() != 2 || steps > ring.len() {
+                return None;
+            }
+            f = if u[0].1 == f { u[1].1 } else { u[0].1 };
+            a = c;
+            steps += 1;
+        };
+    }
+    Some([(arriving[0], leaving[1]), (arriving[1], leaving[0])])
 }
 
 /// Merges boundary vertices on interior voxel faces that coincide within `tol` (model units):
@@ -289,6 +446,181 @@ fn interior_plane(u: f64, n: usize) -> Option<f64> {
     (r >= 1.0 && r <= (n as f64) - 1.0 && (u - r).abs() <= PLANE_EPS).then_some(r)
 }
 
+/// Caps by the winding rule: the triangles (mesh vertex ids; `base + k` for the k-th new point)
+/// and the plane coordinates of the vertices added where loops cross.
+struct WindingCaps {
+    triangles: Vec<[u32; 3]>,
+    new_points: Vec<[f64; 2]>,
+}
+
+/// A vertex of the constrained triangulation of a plane's loops.
+#[derive(Clone, Copy, Debug)]
+struct PlaneVertex(Point2<f64>);
+
+impl HasPosition for PlaneVertex {
+    type Scalar = f64;
+    fn position(&self) -> Point2<f64> {
+        self.0
+    }
+}
+
+/// Caps the loops of one plane by the winding rule, where ear clipping cannot: loops that cross
+/// (two copies' sections overlapping by a sliver, each capped from its own side, as on the CGAL
+/// cheese grown by +1 along two offsets), or a hole that runs with its outline.
+///
+/// The loops' edges are the constraints of a constrained Delaunay triangulation of their
+/// vertices (`spade`, with crossing constraints split at a new vertex). Each triangle gets the
+/// winding number of the loops around its centroid: +1 is an opening whose boundary runs
+/// counter-clockwise, capped clockwise (against its edges, as every cap); −1 the reverse; 0 is
+/// outside, or where two openings that face each other overlap and nothing is missing (the two
+/// copies' solids meet there). Other values (openings stacked the same way) are left open. This
+/// is the non-zero fill of vector graphics, read per sign, and the way a slicer resolves
+/// self-intersecting outlines. `None` when two loop vertices share a position (a pinch the
+/// triangulation would merge) or the triangulation refuses a vertex.
+fn winding_caps(loops: &[(Loop, u32)], base: u32) -> Option<WindingCaps> {
+    let mut cdt: ConstrainedDelaunayTriangulation<PlaneVertex> = ConstrainedDelaunayTriangulation::new();
+    let mut ids: Vec<u32> = Vec::new();
+    let mut handles: Vec<Vec<FixedVertexHandle>> = Vec::with_capacity(loops.len());
+    for (l, _) in loops {
+        let mut hs = Vec::with_capacity(l.vertices.len());
+        for (&v, p) in l.vertices.iter().zip(&l.plane) {
+            let h = cdt.insert(PlaneVertex(Point2::new(p[0], p[1]))).ok()?;
+            if h.index() == ids.len() {
+                ids.push(v);
+            } else if ids.get(h.index()) != Some(&v) {
+                return None;
+            }
+            hs.push(h);
+        }
+        handles.push(hs);
+    }
+    for hs in &handles {
+        for i in 0..hs.len() {
+            let (a, b) = (hs[i], hs[(i + 1) % hs.len()]);
+            if a != b {
+                cdt.add_constraint_and_split(a, b, PlaneVertex);
+            }
+        }
+    }
+    let new_points: Vec<[f64; 2]> = cdt
+        .vertices()
+        .filter(|v| v.fix().index() >= ids.len())
+        .map(|v| [v.position().x, v.position().y])
+        .collect();
+    let id = |h: FixedVertexHandle| -> u32 {
+        let i = h.index();
+        if i < ids.len() { ids[i] } else { base + (i - ids.len()) as u32 }
+    };
+    let mut triangles = Vec::new();
+    for face in cdt.inner_faces() {
+        let [a, b, c] = face.vertices();
+        let (pa, pb, pc) = (a.position(), b.position(), c.position());
+        let centroid = [(pa.x + pb.x + pc.x) / 3.0, (pa.y + pb.y + pc.y) / 3.0];
+        let w: i32 = loops.iter().map(|(l, _)| winding(&l.plane, centroid)).sum();
+        // spade's faces run counter-clockwise.
+        match w {
+            1 => triangles.push([id(a.fix()), id(c.fix()), id(b.fix())]),
+            -1 => triangles.push([id(a.fix()), id(b.fix()), id(c.fix())]),
+            _ => {}
+        }
+    }
+    Some(WindingCaps { triangles, new_points })
+}
+
+/// The winding number of the closed polygon `p` around `q`.
+fn winding(p: &[[f64; 2]], q: [f64; 2]) -> i32 {
+    let mut w = 0;
+    let n = p.len();
+    for i in 0..n {
+        let (a, b) = (p[i], p[(i + 1) % n]);
+        let side = (b[0] - a[0]) * (q[1] - a[1]) - (q[0] - a[0]) * (b[1] - a[1]);
+        if a[1] <= q[1] {
+            if b[1] > q[1] && side > 0.0 {
+                w += 1;
+            }
+        } else if b[1] <= q[1] && side < 0.0 {
+            w -= 1;
+        }
+    }
+    w
+}
+
+/// One part of a loop split at a voxel edge: the axis of its face plane, its vertices and their
+/// grid coordinates.
+type Part = (usize, Vec<u32>, Vec<[f64; 3]>);
+
+/// Splits a loop that runs around a voxel edge into its parts on the edge's two faces.
+///
+/// A copy cut at two perpendicular voxel faces that meet in an edge (where the output grows along
+/// two directions at once) has one opening that folds over that edge: a run on one face plane and
+/// a run on the other, joined at two vertices on the edge line where the cut crosses it. On the
+/// CGAL cheese grown by +1 along two offsets it is one loop of 609 vertices, too long for the hole
+/// fill, which in any case would span it with one sheet across the fold. Each run closed by the
+/// straight segment along the edge line is a loop on one plane, capped as any other: the two caps
+/// meet along that segment, once each way (the first run's loop closes `w → u`, so its cap holds
+/// `u → w`, and the second's the reverse).
+///
+/// `None` unless every vertex lies on one of two interior face planes of different axes, the
+/// vertices on both (on the edge line) separate exactly one run on each plane, and each run has a
+/// vertex off the other plane. Loops that cross the edge line several times are left to the hole
+/// fill: their runs' chords along the line need not pair up.
+fn split_at_edge(vertices: &[u32], u: &[[f64; 3]], out_dims: [usize; 3]) -> Option<[Part; 2]> {
+    let on = |p: &[f64; 3], (d, r): (usize, f64)| (p[d] - r).abs() <= PLANE_EPS;
+    // The two planes: those of the first vertex on only one plane and of the first vertex off it.
+    let planes_of = |p: &[f64; 3]| -> Vec<(usize, f64)> {
+        (0..3).filter_map(|d| interior_plane(p[d], out_dims[d]).map(|r| (d, r))).collect()
+    };
+    let first = u.iter().map(&planes_of).find(|ps| ps.len() == 1)?[0];
+    let second = *planes_of(u.iter().find(|p| !on(p, first))?).first()?;
+    if second.0 == first.0 {
+        return None;
+    }
+    // 1: on the first plane only, 2: on the second only, 3: on both (the edge line).
+    let side: Vec<u8> = u.iter().map(|p| on(p, first) as u8 | ((on(p, second) as u8) << 1)).collect();
+    if side.contains(&0) {
+        return None;
+    }
+    // Start after a vertex on the edge line whose next vertex is on the first plane only.
+    let n = side.len();
+    let start = (0..n).find(|&i| side[i] == 3 && side[(i + 1) % n] == 1)?;
+    // Walk: a run ends at the last edge-line vertex before a vertex of the other plane; edge-line
+    // vertices inside a run are where it touches the line (or runs along it) and goes on.
+    let mut runs: Vec<(u8, Vec<usize>)> = vec![(1, vec![start])];
+    for k in 1..=n {
+        let i = (start + k) % n;
+        let last = runs.last_mut().expect("one run");
+        last.1.push(i);
+        if side[i] == 3 {
+            continue;
+        }
+        if side[i] != last.0 {
+            // A vertex of the other plane: the run ended at the previous edge-line vertex.
+            let prev = last.1[last.1.len() - 2];
+            if side[prev] != 3 {
+                return None; // an edge leaves one plane for the other off the edge line
+            }
+            last.1.pop();
+            runs.push((side[i], vec![prev, i]));
+        }
+    }
+    // The walk came back to `start`, which ends the last run; a last run on the first plane
+    // continues the first through `start` (a run may touch the edge line and stay on its plane).
+    if runs.len() == 3 && runs[2].0 == 1 {
+        let mut last = runs.pop().expect("three runs").1;
+        last.extend_from_slice(&runs[0].1[1..]);
+        runs[0].1 = last;
+    }
+    if runs.len() != 2 || runs[1].0 != 2 {
+        return None;
+    }
+    let part = |(d, _): (usize, f64), idx: &[usize]| -> Part {
+        (d, idx.iter().map(|&i| vertices[i]).collect(), idx.iter().map(|&i| u[i]).collect())
+    };
+    // Both runs hold both of their edge-line ends `u` and `w`: the first runs from `u` to `w`
+    // and closes by `w → u`, the second runs from `w` to `u` and closes by `u → w`.
+    Some([part(first, &runs[0].1), part(second, &runs[1].1)])
+}
+
 /// The signed area of a closed polygon (shoelace formula), positive counter-clockwise.
 fn signed_area(p: &[[f64; 2]]) -> f64 {
     let n = p.len();
@@ -333,6 +665,17 @@ mod tests {
         let lattice = Lattice::regular(n, n.scale); // one model unit per cell
         let grid = VoxelGrid::covering(&lattice, &bounds.positions);
         assert_eq!(grid.dims, [2, 1, 1]);
+        (lattice, grid)
+    }
+
+    /// The lattice and grid of unit cells over `[0, dims₀] × [0, dims₁] × [0, dims₂]` (model
+    /// units).
+    fn cells(dims: [usize; 3]) -> (Lattice, VoxelGrid) {
+        let bounds = box_mesh([0.0; 3], dims.map(|n| n as f64), [1, 1, 1]).unwrap();
+        let n = crate::retarget::canonical::normalisation_of(&bounds).unwrap();
+        let lattice = Lattice::regular(n, n.scale);
+        let grid = VoxelGrid::covering(&lattice, &bounds.positions);
+        assert_eq!(grid.dims, dims);
         (lattice, grid)
     }
 
@@ -394,6 +737,64 @@ mod tests {
         assert_eq!(m.positions.len(), 12, "the merged duplicates are removed");
         assert_closed_and_oriented(&m);
         assert!((m.signed_volume() - 2.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn an_opening_folded_over_a_voxel_edge_is_capped_on_both_faces() {
+        // A unit cube without its faces on x = 1 and y = 1, which meet in the voxel edge
+        // x = y = 1 of a 2 × 2 × 1 grid: one loop of six vertices on two planes.
+        let mut m = box_mesh([0.0; 3], [1.0; 3], [1, 1, 1]).unwrap();
+        let p = m.positions.clone();
+        let on = |t: &[u32; 3], d: usize| t.iter().all(|&v| (p[v as usize][d] - 1.0).abs() < 1e-12);
+        m.triangles.retain(|t| !on(t, 0) && !on(t, 1));
+        assert_eq!(mesh_stats(&m).1, 6);
+        let (lattice, grid) = cells([2, 2, 1]);
+        let mut voxels = vec![0u32; m.triangles.len()];
+        let c = cap_openings(&mut m, &mut voxels, &grid, [2, 2, 1], &lattice, 1e-6);
+        assert_eq!((c.loops, c.split_loops, c.triangles, c.winding_planes), (2, 1, 4, 0));
+        assert_closed_and_oriented(&m);
+        assert!((m.signed_volume() - 1.0).abs() < 1e-12, "volume {}", m.signed_volume());
+    }
+
+    #[test]
+    fn two_openings_touching_at_a_vertex_are_capped_apart() {
+        // The face x = 1 of a unit cube as 2 × 2 squares, two diagonal ones removed: two square
+        // openings sharing the vertex (1, ½, ½), which two boundary edges leave.
+        let mut m = box_mesh([0.0; 3], [1.0; 3], [1, 2, 2]).unwrap();
+        let p = m.positions.clone();
+        m.triangles.retain(|t| {
+            let c = |d: usize| t.iter().map(|&v| p[v as usize][d]).sum::<f64>() / 3.0;
+            !(c(0) > 1.0 - 1e-9 && (c(1) < 0.5) == (c(2) < 0.5))
+        });
+        assert_eq!(mesh_stats(&m).1, 8);
+        let c = cap(&mut m);
+        assert_eq!((c.loops, c.triangles, c.split_loops, c.winding_planes), (2, 4, 0, 0));
+        assert_closed_and_oriented(&m);
+        assert!((m.signed_volume() - 1.0).abs() < 1e-12, "volume {}", m.signed_volume());
+    }
+
+    #[test]
+    fn crossing_openings_are_capped_by_the_winding_rule() {
+        // Two boxes on either side of x = 1, each open towards the other, whose openings overlap:
+        // their loops cross twice. Each box is closed where the other does not cover its opening;
+        // where both are open, the two solids meet and nothing is missing.
+        let mut m = open_box([0.0; 3], [1.0; 3], 1.0);
+        m.append(&open_box([1.0, 0.5, 0.2], [2.0, 1.5, 1.2], 1.0));
+        assert_eq!(mesh_stats(&m).1, 8);
+        let c = cap(&mut m);
+        assert_eq!((c.loops, c.winding_planes, c.merged), (2, 1, 0));
+        assert_closed_and_oriented(&m);
+        assert!((m.signed_volume() - 2.0).abs() < 1e-12, "volume {}", m.signed_volume());
+        // The caps (the only faces on x = 1) cover each box's opening less the overlap:
+        // 2 × (1 − ½ · 0.8).
+        let area: f64 = m
+            .triangles
+            .iter()
+            .map(|t| t.map(|v| m.positions[v as usize]))
+            .filter(|t| t.iter().all(|x| (x[0] - 1.0).abs() < 1e-12))
+            .map(|[a, b, q]| 0.5 * ((b[1] - a[1]) * (q[2] - a[2]) - (q[1] - a[1]) * (b[2] - a[2])).abs())
+            .sum();
+        assert!((area - 1.2).abs() < 1e-12, "cap area {area}");
     }
 
     #[test]

@@ -381,6 +381,14 @@ pub struct RetargetReport {
     /// Triangles those caps added.
     #[serde(default)]
     pub cap_triangles: usize,
+    /// Of the capped loops, those that folded over a voxel edge and were split there into one
+    /// loop on each of its two faces.
+    #[serde(default)]
+    pub capped_folded_loops: usize,
+    /// Voxel face planes whose openings cross (copies' sections overlapping) and were capped by
+    /// the winding rule.
+    #[serde(default)]
+    pub winding_cap_planes: usize,
     /// Holes filled after capping (boundary loops closed; see [`RetargetOptions::fill_holes`]).
     #[serde(default)]
     pub filled_holes: usize,
@@ -736,6 +744,8 @@ impl RetargetSession {
             welded_vertices: stitched.welded + stitched.capped.merged,
             capped_loops: stitched.capped.loops,
             cap_triangles: stitched.capped.triangles,
+            capped_folded_loops: stitched.capped.split_loops,
+            winding_cap_planes: stitched.capped.winding_planes,
             filled_holes: stitched.filled.filled,
             fill_triangles: stitched.filled.triangles,
             normalised_from_model: canonical::normalised_from_model(&self.lattice.normalisation),
