@@ -61,7 +61,9 @@ fn common_edge(u: On, w: On) -> Option<(u32, u32)> {
 }
 
 /// The input mesh cut at the grid's interior planes (canonical space).
-pub(crate) fn cut_at_voxel_faces(mesh: &TriMesh, lattice: &Lattice, grid: &VoxelGrid) -> TriMesh {
+/// Returns the cut mesh (the input's vertices first, with their indices) and, for each of its
+/// triangles, the input triangle it is a piece of.
+pub(crate) fn cut_at_voxel_faces(mesh: &TriMesh, lattice: &Lattice, grid: &VoxelGrid) -> (TriMesh, Vec<u32>) {
     let canon: Vec<Point3> = mesh.positions.iter().map(|p| lattice.canonical(*p)).collect();
     let mut positions = mesh.positions.clone();
     let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(mesh.triangles.len());
@@ -77,7 +79,8 @@ pub(crate) fn cut_at_voxel_faces(mesh: &TriMesh, lattice: &Lattice, grid: &Voxel
     // Crossings of two planes inside one triangle, shared by the pieces of that triangle:
     // ((axis, plane) of the earlier cut, plane of the current cut along `axis`) → vertex.
     let mut inside_points: HashMap<((usize, i64), i64), u32, FixedState> = HashMap::default();
-    for t in &mesh.triangles {
+    let mut parent: Vec<u32> = Vec::with_capacity(mesh.triangles.len());
+    for (f, t) in mesh.triangles.iter().enumerate() {
         inside_points.clear();
         let mut pieces: Vec<Vec<PolyVertex>> =
             vec![t.iter().map(|&v| PolyVertex { id: v, c: canon[v as usize], on: On::Vertex(v) }).collect()];
@@ -176,11 +179,12 @@ pub(crate) fn cut_at_voxel_faces(mesh: &TriMesh, lattice: &Lattice, grid: &Voxel
                 let tri = [poly[0].id, poly[i].id, poly[i + 1].id];
                 if tri[0] != tri[1] && tri[1] != tri[2] && tri[0] != tri[2] {
                     triangles.push(tri);
+                    parent.push(f as u32);
                 }
             }
         }
     }
-    TriMesh { positions, triangles }
+    (TriMesh { positions, triangles }, parent)
 }
 
 #[cfg(test)]
@@ -200,8 +204,17 @@ mod tests {
         let lattice = Lattice::from_offsets(n, &[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], 0.2).unwrap();
         let grid = VoxelGrid::covering(&lattice, &mesh.positions);
         assert_eq!(grid.dims, [3, 2, 1]);
-        let cut = cut_at_voxel_faces(&mesh, &lattice, &grid);
+        let (cut, parent) = cut_at_voxel_faces(&mesh, &lattice, &grid);
         assert!((cut.area() - 6.0).abs() < 1e-12);
+        // The input's vertices keep their indices, and each piece names its input triangle: the
+        // pieces of each add up to its area.
+        assert_eq!(cut.positions[..4], mesh.positions[..]);
+        assert_eq!(parent.len(), cut.triangles.len());
+        let areas = cut.face_areas();
+        for p in 0..2 {
+            let area: f64 = (0..cut.triangles.len()).filter(|&f| parent[f] == p).map(|f| areas[f]).sum();
+            assert!((area - 3.0).abs() < 1e-12, "input triangle {p}: area {area}");
+        }
         // Every piece lies in one cell.
         for f in 0..cut.triangles.len() {
             let c = cut.corners(f);

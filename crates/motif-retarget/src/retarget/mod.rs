@@ -426,6 +426,8 @@ pub struct RetargetSession {
     lattice: Lattice,
     grid: VoxelGrid,
     tri_voxel: Vec<u32>,
+    /// The input triangle each triangle of `mesh` is a piece of.
+    pieces: stitch::Pieces,
     descriptors: VoxelDescriptors,
     cache: DistanceCache,
     precompute: StageTimings,
@@ -523,10 +525,12 @@ impl RetargetSession {
             });
         }
         let grid = VoxelGrid::covering(&lattice, &mesh.positions);
-        let mesh = match options.assignment {
-            TriangleAssignment::Centroid => mesh.clone(),
+        let original = mesh.triangles.clone();
+        let (mesh, parent) = match options.assignment {
+            TriangleAssignment::Centroid => (mesh.clone(), (0..original.len() as u32).collect()),
             TriangleAssignment::Cut => cut::cut_at_voxel_faces(mesh, &lattice, &grid),
         };
+        let pieces = stitch::Pieces::new(parent, original);
         let tri_voxel = voxels::assign_triangles(&mesh, &lattice, &grid);
         progress.finish();
         let voxelize_ms = t0.elapsed().as_secs_f64() * 1e3;
@@ -570,6 +574,7 @@ impl RetargetSession {
             lattice,
             grid,
             tri_voxel,
+            pieces,
             descriptors,
             cache: DistanceCache::default(),
             precompute: StageTimings { voxelize_ms, sampling_ms, descriptors_ms, ..Default::default() },
@@ -690,6 +695,7 @@ impl RetargetSession {
         let stitched = stitch::stitch(
             &self.mesh,
             &self.tri_voxel,
+            &self.pieces,
             &self.grid,
             out_dims,
             &solved.labels,

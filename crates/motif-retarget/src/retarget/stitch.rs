@@ -39,14 +39,59 @@ pub(crate) struct Stitched {
     pub filled: HoleFillReport,
 }
 
+/// The input triangles behind the triangles the stitch copies: with
+/// [`super::TriangleAssignment::Cut`], the pieces of each input triangle (one per voxel it
+/// crosses), which the stitch puts back together where one copy holds all of them.
+#[derive(Debug, Clone)]
+pub(crate) struct Pieces {
+    /// The input triangle of each piece.
+    parent: Vec<u32>,
+    /// The input triangles (vertex indices shared with the cut mesh).
+    original: Vec<[u32; 3]>,
+    /// Pieces of each input triangle (CSR rows, in piece order).
+    start: Vec<u32>,
+    list: Vec<u32>,
+}
+
+impl Pieces {
+    pub fn new(parent: Vec<u32>, original: Vec<[u32; 3]>) -> Pieces {
+        let mut start = vec![0u32; original.len() + 1];
+        for &p in &parent {
+            start[p as usize + 1] += 1;
+        }
+        for p in 0..original.len() {
+            start[p + 1] += start[p];
+        }
+        let mut fill = start.clone();
+        let mut list = vec![0u32; parent.len()];
+        for (f, &p) in parent.iter().enumerate() {
+            list[fill[p as usize] as usize] = f as u32;
+            fill[p as usize] += 1;
+        }
+        Pieces { parent, original, start, list }
+    }
+
+    fn of(&self, p: usize) -> &[u32] {
+        &self.list[self.start[p] as usize..self.start[p + 1] as usize]
+    }
+}
+
 /// Assembles the output mesh. `labels` has one step vector per output voxel of the grid with
 /// `out_dims` voxels; `weld_tolerance` is in model units; with `cap`, the openings left on voxel
 /// faces are capped ([`super::caps`]); with `fill_open`, the holes still open after that are filled
 /// ([`motif_core::hole_fill`]; each new triangle takes the output voxel of the triangle beside its
 /// hole).
+///
+/// An input triangle cut into pieces at voxel faces ([`Pieces`]) is copied whole where all its
+/// pieces go to output voxels of one label: no seam runs through it there, and the cut's pieces
+/// (fan triangles of each cell's part, and their vertices on the faces) would only multiply the
+/// output's triangles (the heat sink's base plate, cut at every fin, came out with about four
+/// times its triangles). Where a whole triangle meets the pieces of a neighbour that a seam does
+/// cross, the neighbour's vertices on their shared edge are split into it ([`split_t_junctions`]).
 pub(crate) fn stitch(
     mesh: &TriMesh,
     tri_voxel: &[u32],
+    pieces: &Pieces,
     grid_in: &VoxelGrid,
     out_dims: [usize; 3],
     labels: &[[i32; 3]],
@@ -115,6 +160,15 @@ pub(crate) fn stitch(
     let mut origin_of: Vec<(u32, [i32; 3])> = Vec::new();
     let mut triangles: Vec<[u32; 3]> = Vec::new();
     let mut triangle_voxels: Vec<u32> = Vec::new();
+    // Per label in use: whether each input triangle's pieces all go to voxels of that label
+    // (0 not known yet, 1 yes, 2 no).
+    let mut whole_of: Vec<Vec<u8>> = Vec::new();
+    let whole = |p: usize, k: [i32; 3]| {
+        pieces.of(p).iter().all(|&g| {
+            let c = grid_in.coords(tri_voxel[g as usize] as usize);
+            out.linear_checked([0, 1, 2].map(|a| c[a] as i64 + k[a] as i64)).is_some_and(|y| labels[y] == k)
+        })
+    };
     for (x, &k) in labels.iter().enumerate() {
         let c = out.coords(x);
         let src = [c[0] as i64 - k[0] as i64, c[1] as i64 - k[1] as i64, c[2] as i64 - k[2] as i64];
@@ -123,11 +177,27 @@ pub(crate) fn stitch(
         let t = lattice.translation(k);
         let slot = *label_slot.entry(k).or_insert_with(|| {
             vertex_of.push(vec![UNSET; num_in_vertices]);
+            whole_of.push(vec![0; pieces.original.len()]);
             vertex_of.len() - 1
         });
         let table = &mut vertex_of[slot];
+        let memo = &mut whole_of[slot];
         for &f in &by_voxel[start[s] as usize..start[s + 1] as usize] {
-            let tri = mesh.triangles[f as usize].map(|v| {
+            let p = pieces.parent[f as usize] as usize;
+            let own = pieces.of(p);
+            let source = if own.len() < 2 {
+                mesh.triangles[f as usize]
+            } else {
+                if memo[p] == 0 {
+                    memo[p] = if whole(p, k) { 1 } else { 2 };
+                }
+                match (memo[p], own[0] == f) {
+                    (1, true) => pieces.original[p],
+                    (1, false) => continue, // copied whole with its first piece
+                    _ => mesh.triangles[f as usize],
+                }
+            };
+            let tri = source.map(|v| {
                 let e = &mut table[v as usize];
                 if *e == UNSET {
                     positions.push(add(mesh.positions[v as usize], t));
