@@ -17,7 +17,8 @@ use std::collections::HashMap;
 
 use foldhash::fast::FixedState;
 
-use motif_core::geometry::{Point3, add, dist2, dot, scale, sub};
+use earcut::Earcut;
+use motif_core::geometry::{Point3, add, cross, dist2, dot, scale, sub};
 use motif_core::hole_fill::{HoleFillOptions, HoleFillReport, fill_holes};
 use motif_core::mesh::{TriMesh, UnionFind, edges_by_key, single_use};
 
@@ -86,8 +87,12 @@ impl Pieces {
 /// pieces go to output voxels of one label: no seam runs through it there, and the cut's pieces
 /// (fan triangles of each cell's part, and their vertices on the faces) would only multiply the
 /// output's triangles (the heat sink's base plate, cut at every fin, came out with about four
-/// times its triangles). Where a whole triangle meets the pieces of a neighbour that a seam does
-/// cross, the neighbour's vertices on their shared edge are split into it ([`split_t_junctions`]).
+/// times its triangles). Where a seam does cross it, the pieces each copy holds are joined into
+/// one polygon and triangulated anew without the vertices that only subdivide its sides
+/// ([`join_pieces`]). Where a whole or joined triangle meets a neighbour that kept a vertex on
+/// their shared edge, the vertex is split into it ([`split_t_junctions`]). Heat sink +2 fins:
+/// 87,544 triangles with every piece, 42,536 with whole triangles, 28,334 with joined pieces
+/// (input 23,002); without caps and fill the surface's area agrees to 2·10⁻⁸.
 pub(crate) fn stitch(
     mesh: &TriMesh,
     tri_voxel: &[u32],
@@ -160,15 +165,21 @@ pub(crate) fn stitch(
     let mut origin_of: Vec<(u32, [i32; 3])> = Vec::new();
     let mut triangles: Vec<[u32; 3]> = Vec::new();
     let mut triangle_voxels: Vec<u32> = Vec::new();
-    // Per label in use: whether each input triangle's pieces all go to voxels of that label
-    // (0 not known yet, 1 yes, 2 no).
+    // Per label in use, for each input triangle: 0 not seen yet, WHOLE (all its pieces go to
+    // voxels of that label), JOINED (not all; those that do were joined), APART (not joined).
     let mut whole_of: Vec<Vec<u8>> = Vec::new();
-    let whole = |p: usize, k: [i32; 3]| {
-        pieces.of(p).iter().all(|&g| {
-            let c = grid_in.coords(tri_voxel[g as usize] as usize);
-            out.linear_checked([0, 1, 2].map(|a| c[a] as i64 + k[a] as i64)).is_some_and(|y| labels[y] == k)
-        })
+    let in_label = |g: u32, k: [i32; 3]| {
+        let c = grid_in.coords(tri_voxel[g as usize] as usize);
+        out.linear_checked([0, 1, 2].map(|a| c[a] as i64 + k[a] as i64)).is_some_and(|y| labels[y] == k)
     };
+    let whole = |p: usize, k: [i32; 3]| pieces.of(p).iter().all(|&g| in_label(g, k));
+    const WHOLE: u8 = 1;
+    const JOINED: u8 = 2;
+    const APART: u8 = 3;
+    let mut merged: Vec<[u32; 3]> = Vec::new();
+    let mut present: Vec<u32> = Vec::new();
+    let mut earcut = Earcut::new();
+    let mut ears: Vec<u32> = Vec::new();
     for (x, &k) in labels.iter().enumerate() {
         let c = out.coords(x);
         let src = [c[0] as i64 - k[0] as i64, c[1] as i64 - k[1] as i64, c[2] as i64 - k[2] as i64];
@@ -185,29 +196,55 @@ pub(crate) fn stitch(
         for &f in &by_voxel[start[s] as usize..start[s + 1] as usize] {
             let p = pieces.parent[f as usize] as usize;
             let own = pieces.of(p);
-            let source = if own.len() < 2 {
-                mesh.triangles[f as usize]
+            merged.clear();
+            if own.len() < 2 {
+                merged.push(mesh.triangles[f as usize]);
             } else {
-                if memo[p] == 0 {
-                    memo[p] = if whole(p, k) { 1 } else { 2 };
+                let first_visit = memo[p] == 0;
+                if first_visit {
+                    memo[p] = if whole(p, k) {
+                        WHOLE
+                    } else {
+                        // The pieces this copy holds, joined where no seam separates them; the
+                        // joined triangles go out now, with the first of them visited.
+                        present.clear();
+                        present.extend(own.iter().copied().filter(|&g| in_label(g, k)));
+                        if join_pieces(
+                            mesh,
+                            &present,
+                            pieces.original[p],
+                            &mut earcut,
+                            &mut ears,
+                            &mut merged,
+                        ) {
+                            JOINED
+                        } else {
+                            merged.clear();
+                            APART
+                        }
+                    };
                 }
-                match (memo[p], own[0] == f) {
-                    (1, true) => pieces.original[p],
-                    (1, false) => continue, // copied whole with its first piece
-                    _ => mesh.triangles[f as usize],
+                match memo[p] {
+                    WHOLE if own[0] == f => merged.push(pieces.original[p]),
+                    WHOLE => continue, // copied whole with its first piece
+                    JOINED if first_visit => {}
+                    JOINED => continue,
+                    _ => merged.push(mesh.triangles[f as usize]),
                 }
-            };
-            let tri = source.map(|v| {
-                let e = &mut table[v as usize];
-                if *e == UNSET {
-                    positions.push(add(mesh.positions[v as usize], t));
-                    origin_of.push((v, k));
-                    *e = (positions.len() - 1) as u32;
-                }
-                *e
-            });
-            triangles.push(tri);
-            triangle_voxels.push(x as u32);
+            }
+            for &source in &merged {
+                let tri = source.map(|v| {
+                    let e = &mut table[v as usize];
+                    if *e == UNSET {
+                        positions.push(add(mesh.positions[v as usize], t));
+                        origin_of.push((v, k));
+                        *e = (positions.len() - 1) as u32;
+                    }
+                    *e
+                });
+                triangles.push(tri);
+                triangle_voxels.push(x as u32);
+            }
         }
     }
 
@@ -277,6 +314,110 @@ pub(crate) fn stitch(
         HoleFillReport::default()
     };
     Stitched { mesh, triangle_voxels, welded, capped, filled }
+}
+
+/// Joins the pieces `present` of the input triangle `original` (those one copy holds) into one
+/// polygon and triangulates it anew into `out`, without the vertices that only subdivide its
+/// sides (where a voxel face that is no seam cut an edge, or crossed a seam line) or lie inside it.
+/// Vertices a neighbour still has on a shared side are split back in by [`split_t_junctions`].
+/// Returns false (and `out` is to be ignored) unless the pieces' outline is one loop that ear
+/// clipping covers with fewer triangles than the pieces.
+fn join_pieces(
+    mesh: &TriMesh,
+    present: &[u32],
+    original: [u32; 3],
+    earcut: &mut Earcut<f64>,
+    ears: &mut Vec<u32>,
+    out: &mut Vec<[u32; 3]>,
+) -> bool {
+    out.clear();
+    if present.len() < 2 {
+        return false;
+    }
+    // The outline: edges used once among the pieces, as their triangles run.
+    let mut uses: Vec<((u32, u32), u32)> = Vec::with_capacity(3 * present.len());
+    for &g in present {
+        let t = mesh.triangles[g as usize];
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            uses.push(((a.min(b), a.max(b)), a));
+        }
+    }
+    uses.sort_unstable();
+    let mut next: Vec<(u32, u32)> = Vec::new();
+    let mut i = 0;
+    while i < uses.len() {
+        let mut j = i + 1;
+        while j < uses.len() && uses[j].0 == uses[i].0 {
+            j += 1;
+        }
+        if j - i == 1 {
+            let ((a, b), from) = uses[i];
+            next.push((from, if from == a { b } else { a }));
+        }
+        i = j;
+    }
+    next.sort_unstable();
+    if next.windows(2).any(|w| w[0].0 == w[1].0) {
+        return false; // the outline touches itself
+    }
+    let succ = |v: u32| next.binary_search_by_key(&v, |e| e.0).ok().map(|i| next[i].1);
+    let first = next[0].0;
+    let mut outline = vec![first];
+    let mut v = first;
+    loop {
+        let Some(w) = succ(v) else { return false };
+        if w == first {
+            break;
+        }
+        if outline.len() >= next.len() {
+            return false;
+        }
+        outline.push(w);
+        v = w;
+    }
+    if outline.len() != next.len() {
+        return false; // several loops (a hole, or parts apart)
+    }
+    let pos = |v: u32| mesh.positions[v as usize];
+    let n = outline.len();
+    let corners: Vec<u32> = (0..n)
+        .filter(|&i| {
+            let (u, v, w) = (pos(outline[(i + n - 1) % n]), pos(outline[i]), pos(outline[(i + 1) % n]));
+            let (a, b) = (sub(v, u), sub(w, v));
+            let c = cross(a, b);
+            dot(c, c) > 1e-18 * dot(a, a) * dot(b, b) || dot(a, b) <= 0.0
+        })
+        .map(|i| outline[i])
+        .collect();
+    if corners.len() < 3 {
+        return false;
+    }
+    // Ear clipping in the plane of the input triangle, dropping its normal's largest axis.
+    let [p0, p1, p2] = original.map(pos);
+    let normal = cross(sub(p1, p0), sub(p2, p0));
+    let axis = (0..3).max_by(|&a, &b| normal[a].abs().total_cmp(&normal[b].abs())).unwrap_or(2);
+    let (d1, d2) = ((axis + 1) % 3, (axis + 2) % 3);
+    let flat: Vec<[f64; 2]> = corners.iter().map(|&v| [pos(v)[d1], pos(v)[d2]]).collect();
+    earcut.earcut_slice(&flat, &[], ears);
+    if ears.is_empty()
+        || ears.len() / 3 >= present.len()
+        || earcut::deviation(flat.iter().copied(), &[], ears) > 1e-9
+    {
+        return false;
+    }
+    let up = normal[axis].signum();
+    for t in ears.chunks_exact(3) {
+        let (a, b, c) = (t[0] as usize, t[1] as usize, t[2] as usize);
+        let area = (flat[b][0] - flat[a][0]) * (flat[c][1] - flat[a][1])
+            - (flat[c][0] - flat[a][0]) * (flat[b][1] - flat[a][1]);
+        out.push(if area * up >= 0.0 {
+            [corners[a], corners[b], corners[c]]
+        } else {
+            [corners[a], corners[c], corners[b]]
+        });
+    }
+    true
 }
 
 /// Calls `visit(i, j)` for every pair of points `j < i`, both `active`, at most `tol` apart
@@ -467,6 +608,50 @@ pub(crate) fn mesh_stats(mesh: &TriMesh) -> (usize, usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn pieces_join_into_fewer_triangles_on_their_outline() {
+        // The input triangle A B C (right angle at A, legs 2) cut at x = 1 and y = 1; a copy
+        // holding the three pieces with x < 1 (P on the leg AC only subdivides it).
+        let positions = vec![
+            [0.0, 0.0, 0.0], // 0 A
+            [2.0, 0.0, 0.0], // 1 B
+            [0.0, 2.0, 0.0], // 2 C
+            [1.0, 0.0, 0.0], // 3 M on AB
+            [1.0, 1.0, 0.0], // 4 N on BC
+            [0.0, 1.0, 0.0], // 5 P on AC
+        ];
+        let pieces = vec![[0, 3, 4], [0, 4, 5], [5, 4, 2], [3, 1, 4]];
+        let mesh = TriMesh::new(positions, pieces).unwrap();
+        let (mut earcut, mut ears, mut out) = (Earcut::new(), Vec::new(), Vec::new());
+        assert!(join_pieces(&mesh, &[0, 1, 2], [0, 1, 2], &mut earcut, &mut ears, &mut out));
+        assert_eq!(out.len(), 2, "{out:?}");
+        assert!(out.iter().all(|t| !t.contains(&5)), "P is dropped: {out:?}");
+        let joined = TriMesh::new(mesh.positions.clone(), out.clone()).unwrap();
+        assert!((joined.area() - 1.5).abs() < 1e-12);
+        // Facing as the input triangle (+z).
+        for f in 0..out.len() {
+            let [a, b, c] = joined.corners(f);
+            assert!(cross(sub(b, a), sub(c, a))[2] > 0.0);
+        }
+        // Pieces apart (two corners of the triangle, not touching) are not joined; nor is a single
+        // piece.
+        let apart = TriMesh::new(
+            vec![
+                [0.0, 0.0, 0.0],
+                [4.0, 0.0, 0.0],
+                [0.0, 4.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [3.0, 0.0, 0.0],
+                [3.0, 1.0, 0.0],
+            ],
+            vec![[0, 3, 4], [5, 1, 6]],
+        )
+        .unwrap();
+        assert!(!join_pieces(&apart, &[0, 1], [0, 1, 2], &mut earcut, &mut ears, &mut out));
+        assert!(!join_pieces(&mesh, &[3], [0, 1, 2], &mut earcut, &mut ears, &mut out));
+    }
 
     /// A small deterministic generator (SplitMix64) for the oracle tests.
     fn uniform(state: &mut u64) -> f64 {
