@@ -67,7 +67,8 @@ const MAX_DEVIATION: f64 = 1e-6;
 /// What capping did.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub(crate) struct Capped {
-    /// Boundary loops closed.
+    /// Boundary loops closed (on a plane capped by the winding rule, every loop of the plane,
+    /// though a region that two of its loops wind around twice the same way stays open).
     pub loops: usize,
     /// Triangles added.
     pub triangles: usize,
@@ -475,9 +476,20 @@ impl HasPosition for PlaneVertex {
 /// outside, or where two openings that face each other overlap and nothing is missing (the two
 /// copies' solids meet there). Other values (openings stacked the same way) are left open. This
 /// is the non-zero fill of vector graphics, read per sign, and the way a slicer resolves
-/// self-intersecting outlines. `None` when two loop vertices share a position (a pinch the
-/// triangulation would merge) or the triangulation refuses a vertex.
+/// self-intersecting outlines. `None` when two different mesh vertices share a position (the
+/// triangulation would merge them; one mesh vertex met twice, at a pinch, is fine), or the
+/// triangulation refuses a vertex or panics. The winding number of each triangle is counted
+/// over the loops whose box holds its centroid (O(triangles × vertices of those loops); planes
+/// of a few thousand loop vertices, as on the models of `../shared/data`, take milliseconds).
 fn winding_caps(loops: &[(Loop, u32)], base: u32) -> Option<WindingCaps> {
+    // spade asserts on some near-degenerate splits of crossing constraints (slivers are what this
+    // path serves); such a plane is left to the hole fill rather than ending the run.
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| winding_caps_unguarded(loops, base)))
+        .ok()
+        .flatten()
+}
+
+fn winding_caps_unguarded(loops: &[(Loop, u32)], base: u32) -> Option<WindingCaps> {
     let mut cdt: ConstrainedDelaunayTriangulation<PlaneVertex> = ConstrainedDelaunayTriangulation::new();
     let mut ids: Vec<u32> = Vec::new();
     let mut handles: Vec<Vec<FixedVertexHandle>> = Vec::with_capacity(loops.len());
@@ -511,12 +523,28 @@ fn winding_caps(loops: &[(Loop, u32)], base: u32) -> Option<WindingCaps> {
         let i = h.index();
         if i < ids.len() { ids[i] } else { base + (i - ids.len()) as u32 }
     };
+    // Each loop's box: a point outside it has winding number 0 about the loop.
+    let boxes: Vec<[f64; 4]> = loops
+        .iter()
+        .map(|(l, _)| {
+            l.plane
+                .iter()
+                .fold([f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY], |b, p| {
+                    [b[0].min(p[0]), b[1].min(p[1]), b[2].max(p[0]), b[3].max(p[1])]
+                })
+        })
+        .collect();
     let mut triangles = Vec::new();
     for face in cdt.inner_faces() {
         let [a, b, c] = face.vertices();
         let (pa, pb, pc) = (a.position(), b.position(), c.position());
-        let centroid = [(pa.x + pb.x + pc.x) / 3.0, (pa.y + pb.y + pc.y) / 3.0];
-        let w: i32 = loops.iter().map(|(l, _)| winding(&l.plane, centroid)).sum();
+        let q = [(pa.x + pb.x + pc.x) / 3.0, (pa.y + pb.y + pc.y) / 3.0];
+        let w: i32 = loops
+            .iter()
+            .zip(&boxes)
+            .filter(|(_, b)| q[0] >= b[0] && q[1] >= b[1] && q[0] <= b[2] && q[1] <= b[3])
+            .map(|((l, _), _)| winding(&l.plane, q))
+            .sum();
         // spade's faces run counter-clockwise.
         match w {
             1 => triangles.push([id(a.fix()), id(c.fix()), id(b.fix())]),

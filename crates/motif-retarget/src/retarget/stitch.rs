@@ -202,7 +202,11 @@ pub(crate) fn stitch(
             } else {
                 let first_visit = memo[p] == 0;
                 if first_visit {
-                    memo[p] = if whole(p, k) {
+                    // Without welding there is no T-junction pass to mend the sides of whole or
+                    // joined triangles against pieced neighbours: keep every piece.
+                    memo[p] = if weld_tolerance <= 0.0 {
+                        APART
+                    } else if whole(p, k) {
                         WHOLE
                     } else {
                         // The pieces this copy holds, joined where no seam separates them; the
@@ -551,9 +555,10 @@ pub(super) fn split_t_junctions(mesh: &mut TriMesh, triangle_voxels: &mut Vec<u3
             return true;
         }
         // Re-triangulate each split triangle: its corners and split points form a convex polygon
-        // (the points lie on its edges), fanned from a corner not on a split edge when possible.
+        // (the points lie on its edges), triangulated without triangles of no area.
         let mut faces: Vec<u32> = splits.keys().copied().collect();
         faces.sort_unstable();
+        let mut tris: Vec<[u32; 3]> = Vec::new();
         for f in faces {
             let t = mesh.triangles[f as usize];
             let list = &splits[&f];
@@ -564,23 +569,56 @@ pub(super) fn split_t_junctions(mesh: &mut TriMesh, triangle_voxels: &mut Vec<u3
                     polygon.extend_from_slice(vs);
                 }
             }
-            // The corner opposite the first split edge sees every split point of that edge.
-            let first = list.iter().map(|(k, _)| *k).min().unwrap_or(0);
-            let apex = t[(first as usize + 2) % 3];
-            let start = polygon.iter().position(|&v| v == apex).unwrap_or(0);
-            polygon.rotate_left(start);
+            split_polygon(&mesh.positions, &mut polygon, &mut tris);
             let x = triangle_voxels[f as usize];
-            let mut fan = (1..polygon.len() - 1).map(|i| [polygon[0], polygon[i], polygon[i + 1]]);
-            if let Some(tri) = fan.next() {
+            let mut new = tris.drain(..);
+            if let Some(tri) = new.next() {
                 mesh.triangles[f as usize] = tri;
             }
-            for tri in fan {
+            for tri in new {
                 mesh.triangles.push(tri);
                 triangle_voxels.push(x);
             }
         }
     }
     true
+}
+
+/// Triangulates a convex polygon whose sides carry collinear points (a triangle with T-junction
+/// points split into its edges) into `out`, in its orientation, without triangles of no area: ears
+/// are cut at strictly convex vertices, and only where at least three strictly convex vertices
+/// remain (cutting a corner whose two neighbours lie on one side's line would leave the points of
+/// that side alone, collinear). A fan from the polygon's first corner would put a triangle of no
+/// area on every pair of consecutive points of a side through that corner; once whole and joined
+/// triangles met pieced neighbours on two or three sides, the heat sink grown by 2 fins had 16
+/// such triangles instead of 2. `polygon` is consumed.
+fn split_polygon(positions: &[Point3], polygon: &mut Vec<u32>, out: &mut Vec<[u32; 3]>) {
+    let p = |v: u32| positions[v as usize];
+    // Whether b turns strictly between a and c.
+    let turns = |a: u32, b: u32, c: u32| {
+        let (u, w) = (sub(p(b), p(a)), sub(p(c), p(b)));
+        let x = cross(u, w);
+        dot(x, x) > 1e-18 * dot(u, u) * dot(w, w)
+    };
+    while polygon.len() > 3 {
+        let n = polygon.len();
+        let at = |i: usize| polygon[(i + n) % n];
+        let corners = (0..n).filter(|&i| turns(at(i + n - 1), at(i), at(i + 1))).count();
+        // Cutting ear i: i goes; its neighbours' turns are taken anew without it.
+        let ear = (0..n).find(|&i| {
+            let (pp, pr, nx, nn) = (at(i + n - 2), at(i + n - 1), at(i + 1), at(i + 2));
+            turns(pr, at(i), nx) && {
+                let before = 1 + turns(pp, pr, at(i)) as usize + turns(at(i), nx, nn) as usize;
+                let after = turns(pp, pr, nx) as usize + turns(pr, nx, nn) as usize;
+                corners + after >= 3 + before
+            }
+        });
+        let Some(i) = ear else { break };
+        out.push([at(i + n - 1), polygon[i], at(i + 1)]);
+        polygon.remove(i);
+    }
+    // Three left, or no clean ear (not expected for a convex polygon): fan the rest.
+    out.extend((1..polygon.len().saturating_sub(1)).map(|i| [polygon[0], polygon[i], polygon[i + 1]]));
 }
 
 /// Connected components (through shared vertices, counting only components with triangles) and
@@ -608,6 +646,37 @@ pub(crate) fn mesh_stats(mesh: &TriMesh) -> (usize, usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_triangle_split_on_every_side_gets_no_triangle_of_no_area() {
+        // Corners 0, 1, 2; points 3, 4 on side 0–1, 5 on side 1–2, 6, 7 on side 2–0.
+        let positions = vec![
+            [0.0, 0.0, 0.0],
+            [3.0, 0.0, 0.0],
+            [0.0, 3.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [2.0, 0.0, 0.0],
+            [1.5, 1.5, 0.0],
+            [0.0, 2.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ];
+        let mut polygon = vec![0, 3, 4, 1, 5, 2, 6, 7];
+        let mut out = Vec::new();
+        split_polygon(&positions, &mut polygon, &mut out);
+        assert_eq!(out.len(), 6);
+        let mut area = 0.0;
+        for t in &out {
+            let [a, b, c] = t.map(|v| positions[v as usize]);
+            let z = cross(sub(b, a), sub(c, a))[2];
+            assert!(z > 1e-9, "{t:?} has area {}", z / 2.0);
+            area += z / 2.0;
+        }
+        assert!((area - 4.5).abs() < 1e-12);
+        // Every side's points are used: the split edges all appear.
+        for (a, b) in [(0, 3), (3, 4), (4, 1), (1, 5), (5, 2), (2, 6), (6, 7), (7, 0)] {
+            assert!(out.iter().any(|t| (0..3).any(|k| (t[k], t[(k + 1) % 3]) == (a, b))), "edge {a}-{b}");
+        }
+    }
 
     #[test]
     fn pieces_join_into_fewer_triangles_on_their_outline() {
