@@ -56,25 +56,32 @@ pub(crate) struct Pieces {
 
 impl Pieces {
     pub fn new(parent: Vec<u32>, original: Vec<[u32; 3]>) -> Pieces {
-        let mut start = vec![0u32; original.len() + 1];
-        for &p in &parent {
-            start[p as usize + 1] += 1;
-        }
-        for p in 0..original.len() {
-            start[p + 1] += start[p];
-        }
-        let mut fill = start.clone();
-        let mut list = vec![0u32; parent.len()];
-        for (f, &p) in parent.iter().enumerate() {
-            list[fill[p as usize] as usize] = f as u32;
-            fill[p as usize] += 1;
-        }
+        let (start, list) = group_by(&parent, original.len());
         Pieces { parent, original, start, list }
     }
 
     fn of(&self, p: usize) -> &[u32] {
         &self.list[self.start[p] as usize..self.start[p + 1] as usize]
     }
+}
+
+/// The indices `0..keys.len()` grouped by their key (each below `n`), in index order within a
+/// group, as CSR rows: group `g` is `list[start[g]..start[g + 1]]` (a counting sort).
+fn group_by(keys: &[u32], n: usize) -> (Vec<u32>, Vec<u32>) {
+    let mut start = vec![0u32; n + 1];
+    for &k in keys {
+        start[k as usize + 1] += 1;
+    }
+    for g in 0..n {
+        start[g + 1] += start[g];
+    }
+    let mut fill = start.clone();
+    let mut list = vec![0u32; keys.len()];
+    for (i, &k) in keys.iter().enumerate() {
+        list[fill[k as usize] as usize] = i as u32;
+        fill[k as usize] += 1;
+    }
+    (start, list)
 }
 
 /// Assembles the output mesh. `labels` has one step vector per output voxel of the grid with
@@ -105,21 +112,8 @@ pub(crate) fn stitch(
     cap: bool,
     fill_open: bool,
 ) -> Stitched {
-    let n_in = grid_in.len();
     // Triangles per input voxel (CSR, triangle order kept).
-    let mut start = vec![0u32; n_in + 1];
-    for &v in tri_voxel {
-        start[v as usize + 1] += 1;
-    }
-    for v in 0..n_in {
-        start[v + 1] += start[v];
-    }
-    let mut fill = start.clone();
-    let mut by_voxel = vec![0u32; tri_voxel.len()];
-    for (f, &v) in tri_voxel.iter().enumerate() {
-        by_voxel[fill[v as usize] as usize] = f as u32;
-        fill[v as usize] += 1;
-    }
+    let (start, by_voxel) = group_by(tri_voxel, grid_in.len());
     // Input voxels touched by each vertex's triangles (sorted, unique), as CSR rows: a counting
     // pass over the corners, then each (short) row sorted and deduplicated in place.
     let num_in_vertices = mesh.positions.len();
