@@ -12,10 +12,11 @@
 //! from its end vertex). Where two openings touch at a vertex (two boundary edges leave it), the
 //! edge arriving from one fan of triangles continues with the edge leaving the other fan, so that
 //! each opening is its own loop ([`pinch_exits`]); vertices with more openings are left alone.
-//! A loop is an opening of a cut when all its vertices lie on one interior voxel face plane of
-//! the output grid (within 10⁻³ of a cell), or when it folds over a voxel edge, one run on each
-//! of two perpendicular face planes; such a loop is split along the edge into one loop per plane
-//! ([`split_at_edge`]). The loops of one plane are nested by
+//! A loop is an opening of a cut when each of its edges lies on an interior voxel face plane of
+//! the output grid (within 10⁻³ of a cell). A loop that runs over several planes, folding over a
+//! voxel edge or around a voxel corner, is split into loops on each plane, closed by chords along
+//! the voxel edges where it passes from one plane to the next, with a vertex added at a voxel
+//! corner where three planes' chords meet ([`split_over_planes`]). The loops of one plane are nested by
 //! containment (even depth: an outline, odd depth: a hole in the outline around it, such as the
 //! inside of a hollow beam, or the cut of another copy's part that touches the plane inside it)
 //! and each outline with its holes is triangulated by ear clipping (the `earcut` crate, a port of
@@ -39,6 +40,8 @@
 //! one loop of 609 vertices, which the hole fill (limit 600 vertices) left open; filling it
 //! anyway spanned a flat sheet across the cavity. Now caps close it with the cavity's
 //! cross-sections cut out, and the fill adds nothing.
+//! Grown by +2 along its first offset, one opening of 753 vertices runs over four planes and
+//! around a voxel corner; split over its planes, caps close it too.
 //! This is the cap a mesh slicer puts on a cut (Blender's bisect with fill, trimesh's
 //! `slice_plane(cap=True)`); where two copies' parts touch at the plane, the caps make two closed
 //! parts touching, or, when one's opening lies inside the other's, one surface joined around it.
@@ -74,8 +77,10 @@ pub(crate) struct Capped {
     pub triangles: usize,
     /// Coincident boundary vertices merged first.
     pub merged: usize,
-    /// Loops around a voxel edge split into one loop on each of its two faces.
+    /// Loops over several voxel face planes split into loops on each (`split_over_planes`).
     pub split_loops: usize,
+    /// Vertices added at voxel corners where such a loop's parts meet.
+    pub corners: usize,
     /// Planes whose openings were capped by the winding rule (loops that cross).
     pub winding_planes: usize,
 }
@@ -151,6 +156,16 @@ pub(crate) fn cap_openings(
         }
     }
 
+    // Grid coordinates back to model space (the map is affine), for the vertices added
+    // where a loop's parts on several planes meet at a corner, or where loops cross (winding caps).
+    let origin = grid([0.0; 3]);
+    let columns = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]].map(|e| {
+        let g = grid(e);
+        [g[0] - origin[0], g[1] - origin[1], g[2] - origin[2]]
+    });
+    let to_grid: Mat3 = std::array::from_fn(|r| std::array::from_fn(|c| columns[c][r]));
+    let from_grid = invert3(&to_grid);
+
     // Loops, in order of their smallest start vertex (deterministic).
     let mut starts: Vec<u32> = next.keys().copied().collect();
     starts.sort_unstable();
@@ -161,7 +176,8 @@ pub(crate) fn cap_openings(
             continue;
         }
         let mut vertices = vec![s];
-        let mut first_face = u32::MAX;
+        // faces[k]: the triangle along the edge from vertices[k] to the next vertex.
+        let mut faces: Vec<u32> = Vec::new();
         let mut v = s;
         let closed = loop {
             let step = match next.get(&v) {
@@ -169,9 +185,7 @@ pub(crate) fn cap_openings(
                 None => vertices.len().checked_sub(2).and_then(|i| exits.get(&(vertices[i], v)).copied()),
             };
             let Some((w, f)) = step else { break false };
-            if first_face == u32::MAX {
-                first_face = f;
-            }
+            faces.push(f);
             if w == s {
                 break true;
             }
@@ -188,38 +202,29 @@ pub(crate) fn cap_openings(
             continue;
         }
         let u: Vec<[f64; 3]> = vertices.iter().map(|&v| grid(mesh.positions[v as usize])).collect();
-        let on_one = (0..3).find(|&d| {
-            interior_plane(u[0][d], out_dims[d])
-                .is_some_and(|r| u.iter().all(|p| (p[d] - r).abs() <= PLANE_EPS))
-        });
-        let parts = match on_one {
-            Some(axis) => vec![(axis, vertices, u)],
-            None => match split_at_edge(&vertices, &u, out_dims) {
-                Some(parts) => {
-                    capped.split_loops += 1;
-                    parts.into()
-                }
-                None => continue,
-            },
+        let base = if from_grid.is_some() { mesh.positions.len() as u32 } else { u32::MAX };
+        let Some((parts, corners)) = split_over_planes(&vertices, &faces, &u, out_dims, base) else {
+            continue;
         };
-        for (axis, vertices, u) in parts {
-            let (d1, d2) = ((axis + 1) % 3, (axis + 2) % 3);
-            let plane: Vec<[f64; 2]> = u.iter().map(|p| [p[d1], p[d2]]).collect();
+        if parts.len() > 1 {
+            capped.split_loops += 1;
+        }
+        if let Some(m) = from_grid {
+            for c in corners {
+                mesh.positions.push(mul3(&m, [c[0] - origin[0], c[1] - origin[1], c[2] - origin[2]]));
+                capped.corners += 1;
+            }
+        }
+        for part in parts {
+            let (d1, d2) = ((part.axis + 1) % 3, (part.axis + 2) % 3);
+            let plane: Vec<[f64; 2]> = part.u.iter().map(|p| [p[d1], p[d2]]).collect();
             let area = signed_area(&plane);
-            let key = (axis, u[0][axis].round() as i64);
-            groups.entry(key).or_default().push((Loop { vertices, plane, area }, first_face));
+            groups
+                .entry((part.axis, part.at))
+                .or_default()
+                .push((Loop { vertices: part.vertices, plane, area }, part.face));
         }
     }
-
-    // Grid coordinates back to model space (the map is affine), for vertices the winding caps
-    // add where loops cross.
-    let origin = grid([0.0; 3]);
-    let columns = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]].map(|e| {
-        let g = grid(e);
-        [g[0] - origin[0], g[1] - origin[1], g[2] - origin[2]]
-    });
-    let to_grid: Mat3 = std::array::from_fn(|r| std::array::from_fn(|c| columns[c][r]));
-    let from_grid = invert3(&to_grid);
 
     let mut keys: Vec<(usize, i64)> = groups.keys().copied().collect();
     keys.sort_unstable();
@@ -277,7 +282,7 @@ pub(crate) fn cap_openings(
             && let Some(w) = winding_caps(&loops, mesh.positions.len() as u32)
         {
             // Loops that cross (two copies' sections overlapping, or a section folded over a
-            // voxel edge and split there) or a hole that runs with its outline: the whole plane
+            // voxel edge and split over its planes) or a hole that runs with its outline: the whole plane
             // is capped by the winding rule instead.
             let (d1, d2) = ((key.0 + 1) % 3, (key.0 + 2) % 3);
             for q in &w.new_points {
@@ -320,7 +325,7 @@ pub(crate) fn cap_openings(
     if capped.triangles > 0 && tol > 0.0 {
         split_t_junctions(mesh, triangle_voxels, tol);
     }
-    if capped.merged > 0 {
+    if capped.merged > 0 || capped.corners > 0 {
         mesh.remove_unreferenced_vertices();
     }
     capped
@@ -573,80 +578,308 @@ fn winding(p: &[[f64; 2]], q: [f64; 2]) -> i32 {
     w
 }
 
-/// One part of a loop split at a voxel edge: the axis of its face plane, its vertices and their
-/// grid coordinates.
-type Part = (usize, Vec<u32>, Vec<[f64; 3]>);
+/// A loop's part on one face plane (`axis`, grid coordinate `at`): its vertices, their grid
+/// coordinates, and the triangle along its first boundary edge (whose voxel its caps get).
+struct Part {
+    axis: usize,
+    at: i64,
+    vertices: Vec<u32>,
+    u: Vec<[f64; 3]>,
+    face: u32,
+}
 
-/// Splits a loop that runs around a voxel edge into its parts on the edge's two faces.
+/// Splits a loop over the interior face planes its edges lie on into closed loops, one or more
+/// per plane, so that each plane is capped on its own.
 ///
-/// A copy cut at two perpendicular voxel faces that meet in an edge (where the output grows along
-/// two directions at once) has one opening that folds over that edge: a run on one face plane and
-/// a run on the other, joined at two vertices on the edge line where the cut crosses it. On the
-/// CGAL cheese grown by +1 along two offsets it is one loop of 609 vertices, too long for the hole
-/// fill, which in any case would span it with one sheet across the fold. Each run closed by the
-/// straight segment along the edge line is a loop on one plane, capped as any other: the two caps
-/// meet along that segment, once each way (the first run's loop closes `w → u`, so its cap holds
-/// `u → w`, and the second's the reverse).
+/// A copy cut at several voxel faces that meet in edges and corners (where the output grows
+/// along two directions, or where copies of a holey part meet around a voxel) has openings that
+/// fold from one face plane onto another: on the CGAL cheese grown by +2 along its first offset,
+/// one loop of 753 vertices runs over four planes and around a voxel corner. The missing surface
+/// is a polygon on each plane; they meet along the voxel edges where the loop passes from one
+/// plane to the next. So:
+/// 1. every loop edge is given the plane both its ends lie on (an edge along a voxel edge lies on
+///    two: it stays on the plane of the edge before it); an edge with no such plane fails;
+/// 2. the edges of one plane make runs, each from the vertex where the loop comes onto the plane
+///    (on the voxel edge line between it and the previous run's plane) to the vertex where it
+///    leaves;
+/// 3. on each plane the runs are closed by chords along those lines: the chain `c` on the union
+///    of the plane's lines whose boundary cancels the runs' ends. The lines and their crossings
+///    (voxel corners, added as vertices) form a graph; on a forest the chain is unique (the flow
+///    through each edge is what the ends beyond it leave unbalanced), which is required here;
+///    a graph with a cycle (parallel lines crossed twice), a tree whose ends do not balance, or an
+///    edge crossed twice fails;
+/// 4. each plane's runs and chords are traced into closed loops.
 ///
-/// `None` unless every vertex lies on one of two interior face planes of different axes, the
-/// vertices on both (on the edge line) separate exactly one run on each plane, and each run has a
-/// vertex off the other plane. Loops that cross the edge line several times are left to the hole
-/// fill: their runs' chords along the line need not pair up.
-fn split_at_edge(vertices: &[u32], u: &[[f64; 3]], out_dims: [usize; 3]) -> Option<[Part; 2]> {
-    let on = |p: &[f64; 3], (d, r): (usize, f64)| (p[d] - r).abs() <= PLANE_EPS;
-    // The two planes: those of the first vertex on only one plane and of the first vertex off it.
-    let planes_of = |p: &[f64; 3]| -> Vec<(usize, f64)> {
-        (0..3).filter_map(|d| interior_plane(p[d], out_dims[d]).map(|r| (d, r))).collect()
+/// The chords of two planes along their common line are the same segments, run opposite ways
+/// (a run's end on one plane is the next run's start on the other), so their caps meet there
+/// edge to edge; where a corner of three planes splits a chord on one plane only, the T-junction
+/// pass splits it on the other. This generalises the cap of a mesh slicer (Blender's bisect with
+/// fill) from one cutting plane to the faces of a voxel.
+///
+/// Returns the parts and the grid coordinates of the corners added, numbered from `base` (no
+/// corners can be added when `base` is `u32::MAX`). `faces[k]` is the triangle along the edge
+/// from `vertices[k]` to the next vertex. A loop on one plane is returned as it is.
+fn split_over_planes(
+    vertices: &[u32],
+    faces: &[u32],
+    u: &[[f64; 3]],
+    out_dims: [usize; 3],
+    base: u32,
+) -> Option<(Vec<Part>, Vec<[f64; 3]>)> {
+    type Plane = (usize, i64);
+    let n = vertices.len();
+    let on: Vec<[Option<i64>; 3]> = u
+        .iter()
+        .map(|p| std::array::from_fn(|d| interior_plane(p[d], out_dims[d]).map(|r| r as i64)))
+        .collect();
+    let common = |e: usize| -> Vec<Plane> {
+        let (a, b) = (&on[e], &on[(e + 1) % n]);
+        (0..3).filter_map(|d| a[d].filter(|&r| b[d] == Some(r)).map(|r| (d, r))).collect()
     };
-    let first = u.iter().map(&planes_of).find(|ps| ps.len() == 1)?[0];
-    let second = *planes_of(u.iter().find(|p| !on(p, first))?).first()?;
-    if second.0 == first.0 {
+    let commons: Vec<Vec<Plane>> = (0..n).map(common).collect();
+    if commons.iter().any(Vec::is_empty) {
         return None;
     }
-    // 1: on the first plane only, 2: on the second only, 3: on both (the edge line).
-    let side: Vec<u8> = u.iter().map(|p| on(p, first) as u8 | ((on(p, second) as u8) << 1)).collect();
-    if side.contains(&0) {
-        return None;
+    // 1. Each edge's plane, starting from an edge on one plane only.
+    let first = (0..n).find(|&e| commons[e].len() == 1)?;
+    let mut plane: Vec<Plane> = vec![commons[first][0]; n];
+    for k in 1..n {
+        let e = (first + k) % n;
+        let prev = plane[(e + n - 1) % n];
+        plane[e] = if commons[e].contains(&prev) {
+            prev
+        } else {
+            // The plane of the next edge that has only one, when this edge lies on it too.
+            let ahead = (1..n).map(|j| &commons[(e + j) % n]).find(|c| c.len() == 1).map(|c| c[0]);
+            ahead.filter(|p| commons[e].contains(p)).unwrap_or(commons[e][0])
+        };
     }
-    // Start after a vertex on the edge line whose next vertex is on the first plane only.
-    let n = side.len();
-    let start = (0..n).find(|&i| side[i] == 3 && side[(i + 1) % n] == 1)?;
-    // Walk: a run ends at the last edge-line vertex before a vertex of the other plane; edge-line
-    // vertices inside a run are where it touches the line (or runs along it) and goes on.
-    let mut runs: Vec<(u8, Vec<usize>)> = vec![(1, vec![start])];
-    for k in 1..=n {
-        let i = (start + k) % n;
-        let last = runs.last_mut().expect("one run");
-        last.1.push(i);
-        if side[i] == 3 {
-            continue;
+    let faces_of = |e: usize| faces.get(e).copied().unwrap_or(u32::MAX);
+    if plane.iter().all(|&p| p == plane[0]) {
+        let part = Part {
+            axis: plane[0].0,
+            at: plane[0].1,
+            vertices: vertices.to_vec(),
+            u: u.to_vec(),
+            face: faces_of(0),
+        };
+        return Some((vec![part], Vec::new()));
+    }
+    // 2. Runs: (plane, first edge, number of edges), in loop order from a change of plane.
+    let start = (0..n).find(|&e| plane[e] != plane[(e + n - 1) % n])?;
+    let mut runs: Vec<(Plane, usize, usize)> = Vec::new();
+    for k in 0..n {
+        let e = (start + k) % n;
+        match runs.last_mut() {
+            Some(r) if r.0 == plane[e] => r.2 += 1,
+            _ => runs.push((plane[e], e, 1)),
         }
-        if side[i] != last.0 {
-            // A vertex of the other plane: the run ended at the previous edge-line vertex.
-            let prev = last.1[last.1.len() - 2];
-            if side[prev] != 3 {
-                return None; // an edge leaves one plane for the other off the edge line
+    }
+    let r = runs.len();
+
+    // 3.–4. Per plane, in order of first appearance.
+    let mut planes: Vec<Plane> = Vec::new();
+    for run in &runs {
+        if !planes.contains(&run.0) {
+            planes.push(run.0);
+        }
+    }
+    let mut corners: Vec<[f64; 3]> = Vec::new();
+    let mut corner_ids: Vec<([i64; 3], u32)> = Vec::new();
+    let mut parts: Vec<Part> = Vec::new();
+    for &p in &planes {
+        // Nodes: mesh vertex ids (corners added get ids from `base`) with their grid coordinates
+        // and demand (the boundary the chords must add: +1 where a run starts, −1 where one ends).
+        let mut nodes: Vec<(u32, [f64; 3], i32)> = Vec::new();
+        let mut lines: Vec<(Plane, Vec<usize>)> = Vec::new();
+        let node_at = |nodes: &mut Vec<(u32, [f64; 3], i32)>, id: u32, g: [f64; 3]| -> usize {
+            nodes.iter().position(|x| x.0 == id).unwrap_or_else(|| {
+                nodes.push((id, g, 0));
+                nodes.len() - 1
+            })
+        };
+        for (k, run) in runs.iter().enumerate().filter(|(_, run)| run.0 == p) {
+            let (s, t) = (run.1, (run.1 + run.2) % n);
+            for (vi, other, demand) in [(s, runs[(k + r - 1) % r].0, 1), (t, runs[(k + 1) % r].0, -1)] {
+                let id = node_at(&mut nodes, vertices[vi], u[vi]);
+                nodes[id].2 += demand;
+                match lines.iter_mut().find(|l| l.0 == other) {
+                    Some(l) if !l.1.contains(&id) => l.1.push(id),
+                    Some(_) => {}
+                    None => lines.push((other, vec![id])),
+                }
             }
-            last.1.pop();
-            runs.push((side[i], vec![prev, i]));
+        }
+        // Corners where two of the plane's lines cross: a loop vertex there, or a new vertex.
+        for a in 0..lines.len() {
+            for b in a + 1..lines.len() {
+                let (qa, qb) = (lines[a].0, lines[b].0);
+                if qa.0 == qb.0 {
+                    continue; // parallel
+                }
+                let mut key = [0i64; 3];
+                key[p.0] = p.1;
+                key[qa.0] = qa.1;
+                key[qb.0] = qb.1;
+                let g = key.map(|c| c as f64);
+                let near = |x: &[f64; 3]| (0..3).all(|d| (x[d] - g[d]).abs() <= PLANE_EPS);
+                let id = match nodes.iter().position(|x| near(&x.1)) {
+                    Some(i) => i,
+                    None => {
+                        let vid = match u.iter().position(near) {
+                            Some(i) => vertices[i],
+                            None => match corner_ids.iter().find(|c| c.0 == key) {
+                                Some(c) => c.1,
+                                None => {
+                                    if base == u32::MAX {
+                                        return None;
+                                    }
+                                    let vid = base + corners.len() as u32;
+                                    corners.push(g);
+                                    corner_ids.push((key, vid));
+                                    vid
+                                }
+                            },
+                        };
+                        node_at(&mut nodes, vid, g)
+                    }
+                };
+                for l in [a, b] {
+                    if !lines[l].1.contains(&id) {
+                        lines[l].1.push(id);
+                    }
+                }
+            }
+        }
+        // The graph: consecutive nodes along each line; it must be a forest.
+        let mut uf = UnionFind::new(nodes.len());
+        let mut adjacent: Vec<Vec<usize>> = vec![Vec::new(); nodes.len()];
+        for (q, ids) in &mut lines {
+            let t = 3 - p.0 - q.0;
+            ids.sort_by(|&i, &j| nodes[i].1[t].total_cmp(&nodes[j].1[t]));
+            for w in ids.windows(2) {
+                if !uf.union(w[0], w[1]) {
+                    return None;
+                }
+                adjacent[w[0]].push(w[1]);
+                adjacent[w[1]].push(w[0]);
+            }
+        }
+        // The flow through each tree edge, from the leaves up: what the subtree leaves unbalanced.
+        let mut chords: Vec<(usize, usize)> = Vec::new();
+        let mut seen = vec![false; nodes.len()];
+        for root in 0..nodes.len() {
+            if seen[root] {
+                continue;
+            }
+            let mut order = vec![(root, usize::MAX)];
+            seen[root] = true;
+            let mut i = 0;
+            while i < order.len() {
+                let (x, _) = order[i];
+                for &y in &adjacent[x] {
+                    if !seen[y] {
+                        seen[y] = true;
+                        order.push((y, x));
+                    }
+                }
+                i += 1;
+            }
+            let mut sum: Vec<i32> = nodes.iter().map(|x| x.2).collect();
+            for &(x, parent) in order.iter().rev() {
+                if parent == usize::MAX {
+                    if sum[x] != 0 {
+                        return None;
+                    }
+                    continue;
+                }
+                // ∂(x → parent) = parent − x, so the chord x → parent carries −sum(subtree).
+                match -sum[x] {
+                    0 => {}
+                    1 => chords.push((x, parent)),
+                    -1 => chords.push((parent, x)),
+                    _ => return None,
+                }
+                sum[parent] += sum[x];
+            }
+        }
+        // Trace runs and chords into closed loops: items from node to node, with the vertices
+        // (loop indices, or None for a node's own position) they pass before the end node.
+        let mut items: Vec<(usize, usize, Vec<usize>, u32)> = Vec::new();
+        for run in runs.iter().filter(|run| run.0 == p) {
+            let (s, t) = (run.1, (run.1 + run.2) % n);
+            let from = nodes.iter().position(|x| x.0 == vertices[s])?;
+            let to = nodes.iter().position(|x| x.0 == vertices[t])?;
+            items.push((from, to, (0..run.2).map(|k| (s + k) % n).collect(), faces_of(s)));
+        }
+        let runs_here = items.len();
+        items.extend(chords.iter().map(|&(a, b)| (a, b, Vec::new(), u32::MAX)));
+        let mut used = vec![false; items.len()];
+        for first_item in 0..runs_here {
+            if used[first_item] {
+                continue;
+            }
+            let (mut vs, mut gs, mut face) = (Vec::new(), Vec::new(), u32::MAX);
+            let start_node = items[first_item].0;
+            let mut it = first_item;
+            loop {
+                used[it] = true;
+                let (from, to, path, f) = &items[it];
+                if face == u32::MAX {
+                    face = *f;
+                }
+                if path.is_empty() {
+                    vs.push(nodes[*from].0);
+                    gs.push(nodes[*from].1);
+                } else {
+                    vs.extend(path.iter().map(|&i| vertices[i]));
+                    gs.extend(path.iter().map(|&i| u[i]));
+                }
+                if *to == start_node {
+                    break;
+                }
+                let to = *to;
+                it = (0..items.len()).find(|&j| !used[j] && items[j].0 == to)?;
+            }
+            drop_spikes(&mut vs, &mut gs, p.0);
+            if vs.len() >= 3 {
+                parts.push(Part { axis: p.0, at: p.1, vertices: vs, u: gs, face });
+            }
+        }
+        if used.iter().any(|&x| !x) {
+            return None;
         }
     }
-    // The walk came back to `start`, which ends the last run; a last run on the first plane
-    // continues the first through `start` (a run may touch the edge line and stay on its plane).
-    if runs.len() == 3 && runs[2].0 == 1 {
-        let mut last = runs.pop().expect("three runs").1;
-        last.extend_from_slice(&runs[0].1[1..]);
-        runs[0].1 = last;
+    Some((parts, corners))
+}
+
+/// Removes the spikes of a closed polygon on the face plane across `axis`: vertices where it
+/// turns straight back along its way, as where a run ends with a stretch along a voxel edge line
+/// and its chord sets off back over that stretch. A spike has no area, and a cap over it would put
+/// a triangle of no area on the line; the stretch gets its twin from the chord of the other plane
+/// through the line, which the T-junction pass splits at the spike's vertices.
+fn drop_spikes(vertices: &mut Vec<u32>, u: &mut Vec<[f64; 3]>, axis: usize) {
+    let (d1, d2) = ((axis + 1) % 3, (axis + 2) % 3);
+    let mut i = 0;
+    let mut since_change = 0;
+    while vertices.len() >= 3 && since_change <= vertices.len() {
+        let n = vertices.len();
+        let (a, b, c) = (u[(i + n - 1) % n], u[i % n], u[(i + 1) % n]);
+        let e = [b[d1] - a[d1], b[d2] - a[d2]];
+        let f = [c[d1] - b[d1], c[d2] - b[d2]];
+        let (cross, dot) = (e[0] * f[1] - e[1] * f[0], e[0] * f[0] + e[1] * f[1]);
+        let scale = e[0].hypot(e[1]) * f[0].hypot(f[1]);
+        let same = vertices[(i + n - 1) % n] == vertices[i % n];
+        if same || (cross.abs() <= 1e-9 * scale && dot < 0.0) || scale == 0.0 {
+            vertices.remove(i % n);
+            u.remove(i % n);
+            i = (i + n - 2) % (n - 1).max(1);
+            since_change = 0;
+        } else {
+            i = (i + 1) % n;
+            since_change += 1;
+        }
     }
-    if runs.len() != 2 || runs[1].0 != 2 {
-        return None;
-    }
-    let part = |(d, _): (usize, f64), idx: &[usize]| -> Part {
-        (d, idx.iter().map(|&i| vertices[i]).collect(), idx.iter().map(|&i| u[i]).collect())
-    };
-    // Both runs hold both of their edge-line ends `u` and `w`: the first runs from `u` to `w`
-    // and closes by `w → u`, the second runs from `w` to `u` and closes by `u → w`.
-    Some([part(first, &runs[0].1), part(second, &runs[1].1)])
 }
 
 /// The signed area of a closed polygon (shoelace formula), positive counter-clockwise.
@@ -782,6 +1015,68 @@ mod tests {
         assert_eq!((c.loops, c.split_loops, c.triangles, c.winding_planes), (2, 1, 4, 0));
         assert_closed_and_oriented(&m);
         assert!((m.signed_volume() - 1.0).abs() < 1e-12, "volume {}", m.signed_volume());
+    }
+
+    #[test]
+    fn an_opening_around_a_voxel_corner_is_capped_on_its_three_faces() {
+        // A unit cube without its faces on x = 1, y = 1 and z = 1, which meet in the corner
+        // (1, 1, 1) of a 2 × 2 × 2 grid: one hexagonal loop over three planes. Each plane's run
+        // is closed by chords along two voxel edges through the corner, a new vertex.
+        let mut m = box_mesh([0.0; 3], [1.0; 3], [1, 1, 1]).unwrap();
+        let p = m.positions.clone();
+        let on = |t: &[u32; 3], d: usize| t.iter().all(|&v| (p[v as usize][d] - 1.0).abs() < 1e-12);
+        m.triangles.retain(|t| !on(t, 0) && !on(t, 1) && !on(t, 2));
+        m.remove_unreferenced_vertices();
+        assert_eq!((mesh_stats(&m).1, m.positions.len()), (6, 7));
+        let (lattice, grid) = cells([2, 2, 2]);
+        let mut voxels = vec![0u32; m.triangles.len()];
+        let c = cap_openings(&mut m, &mut voxels, &grid, [2, 2, 2], &lattice, 1e-6);
+        assert_eq!((c.loops, c.split_loops, c.corners, c.triangles), (3, 1, 1, 6));
+        assert_closed_and_oriented(&m);
+        assert!((m.signed_volume() - 1.0).abs() < 1e-12, "volume {}", m.signed_volume());
+        assert_eq!(m.positions.len(), 8);
+        assert!(m.positions.iter().any(|x| x.iter().all(|&c| (c - 1.0).abs() < 1e-12)), "the corner");
+    }
+
+    #[test]
+    fn a_run_along_a_voxel_edge_leaves_no_spike() {
+        // A loop over the planes x = 1 and y = 1 of a 2 × 2 × 1 grid (grid coordinates). Its run
+        // on x = 1 reaches the voxel edge x = y = 1 at z = 0.3 and follows it to z = 0.6 before
+        // leaving onto y = 1; the chord that closes it runs from there back to z = 0, over that
+        // stretch: a spike, on which a cap would put a triangle of no area (as on the CGAL cheese
+        // grown by +2 along its first offset, where the stretch's edge ended up in four triangles).
+        let u: Vec<[f64; 3]> = vec![
+            [1.0, 1.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 0.0, 1.0],
+            [1.0, 0.5, 1.0],
+            [1.0, 0.5, 0.3],
+            [1.0, 1.0, 0.3],
+            [1.0, 1.0, 0.6],
+            [0.0, 1.0, 0.6],
+            [0.0, 1.0, 0.0],
+        ];
+        let vertices: Vec<u32> = (0..u.len() as u32).collect();
+        let faces = vec![0u32; u.len()];
+        let (parts, corners) = split_over_planes(&vertices, &faces, &u, [2, 2, 1], 100).expect("split");
+        assert!(corners.is_empty());
+        let mut areas: Vec<(usize, f64)> = Vec::new();
+        for part in &parts {
+            let (d1, d2) = ((part.axis + 1) % 3, (part.axis + 2) % 3);
+            let q: Vec<[f64; 2]> = part.u.iter().map(|p| [p[d1], p[d2]]).collect();
+            let n = q.len();
+            for i in 0..n {
+                let (a, b, c) = (q[(i + n - 1) % n], q[i], q[(i + 1) % n]);
+                let (e, f) = ([b[0] - a[0], b[1] - a[1]], [c[0] - b[0], c[1] - b[1]]);
+                let turns_back = (e[0] * f[1] - e[1] * f[0]).abs() < 1e-12 && e[0] * f[0] + e[1] * f[1] < 0.0;
+                assert!(!turns_back, "a spike at {:?} on the plane across axis {}", part.u[i], part.axis);
+            }
+            areas.push((part.axis, signed_area(&q).abs()));
+        }
+        areas.sort_by_key(|a| a.0);
+        assert_eq!(areas.len(), 2);
+        // x = 1: an L of 1 × 0.3 and 0.5 × 0.7; y = 1: 1 × 0.6.
+        assert!((areas[0].1 - 0.65).abs() < 1e-12 && (areas[1].1 - 0.6).abs() < 1e-12, "{areas:?}");
     }
 
     #[test]

@@ -381,10 +381,13 @@ pub struct RetargetReport {
     /// Triangles those caps added.
     #[serde(default)]
     pub cap_triangles: usize,
-    /// Of the capped loops, those that folded over a voxel edge and were split there into one
-    /// loop on each of its two faces.
+    /// Open loops that ran over several voxel face planes (folding over a voxel edge, or around
+    /// a voxel corner) and were split into loops on each plane before capping.
     #[serde(default)]
     pub capped_folded_loops: usize,
+    /// Vertices added at voxel corners where such a loop's caps on three planes meet.
+    #[serde(default)]
+    pub cap_corners: usize,
     /// Voxel face planes whose openings cross (copies' sections overlapping) and were capped by
     /// the winding rule.
     #[serde(default)]
@@ -751,6 +754,7 @@ impl RetargetSession {
             capped_loops: stitched.capped.loops,
             cap_triangles: stitched.capped.triangles,
             capped_folded_loops: stitched.capped.split_loops,
+            cap_corners: stitched.capped.corners,
             winding_cap_planes: stitched.capped.winding_planes,
             filled_holes: stitched.filled.filled,
             fill_triangles: stitched.filled.triangles,
