@@ -83,6 +83,9 @@ pub(crate) struct Capped {
     pub corners: usize,
     /// Planes whose openings were capped by the winding rule (loops that cross).
     pub winding_planes: usize,
+    /// Pairs of triangles on the same vertices facing opposite ways, removed after capping
+    /// ([`remove_cancelling_pairs`]).
+    pub cancelled_pairs: usize,
 }
 
 /// A boundary loop on a voxel face plane: mesh vertices in the order of the boundary edges, their
@@ -331,6 +334,7 @@ pub(crate) fn cap_openings(
     if capped.merged > 0 || capped.corners > 0 {
         mesh.remove_unreferenced_vertices();
     }
+    capped.cancelled_pairs = remove_cancelling_pairs(mesh, triangle_voxels);
     capped
 }
 
@@ -925,6 +929,57 @@ fn split_over_planes(
     Some((parts, points))
 }
 
+/// Removes the pairs of triangles that have the same three vertices and face opposite ways,
+/// keeping `triangle_voxels` in step; returns the number of pairs removed.
+///
+/// Such a pair is a wall of no thickness between two solids that touch face to face, or, after
+/// capping, a cap laid over an input face that lies on the voxel face it caps (on the CGAL cheese
+/// grown by +1 along all three offsets a copy keeps faces of its pockets that lie on a voxel
+/// face, while the solid they bounded is another copy's; the cap over the opening around them
+/// covers them facing the other way: 12 such pairs, each making edges of four triangles). Both go,
+/// as a mesh Boolean union would remove them: every edge loses one use each way, so a closed,
+/// consistently oriented mesh stays so, with fewer non-manifold edges. Where there are more
+/// copies one way than the other, the latest triangles of each orientation go (caps come last).
+pub(crate) fn remove_cancelling_pairs(mesh: &mut TriMesh, triangle_voxels: &mut Vec<u32>) -> usize {
+    // (sorted vertices, orientation against the sorted order, triangle), sorted.
+    let mut keyed: Vec<([u32; 3], bool, u32)> = mesh
+        .triangles
+        .iter()
+        .enumerate()
+        .map(|(f, t)| {
+            let m = (0..3).min_by_key(|&k| t[k]).unwrap_or(0);
+            let (a, b, c) = (t[m], t[(m + 1) % 3], t[(m + 2) % 3]);
+            ([a, b.min(c), b.max(c)], b > c, f as u32)
+        })
+        .collect();
+    keyed.sort_unstable();
+    let mut drop = vec![false; mesh.triangles.len()];
+    let mut pairs = 0;
+    for group in keyed.chunk_by(|x, y| x.0 == y.0) {
+        let split = group.partition_point(|x| !x.1);
+        let (one, other) = group.split_at(split);
+        let k = one.len().min(other.len());
+        for x in one.iter().rev().take(k).chain(other.iter().rev().take(k)) {
+            drop[x.2 as usize] = true;
+        }
+        pairs += k;
+    }
+    if pairs > 0 {
+        let mut f = 0;
+        mesh.triangles.retain(|_| {
+            f += 1;
+            !drop[f - 1]
+        });
+        let mut f = 0;
+        triangle_voxels.retain(|_| {
+            f += 1;
+            !drop[f - 1]
+        });
+        mesh.remove_unreferenced_vertices();
+    }
+    pairs
+}
+
 /// Removes the spikes of a closed polygon on the face plane across `axis`: vertices where it
 /// turns straight back along its way, as where a run ends with a stretch along a voxel edge line
 /// and its chord sets off back over that stretch. A spike has no area, and a cap over it would put
@@ -1170,6 +1225,54 @@ mod tests {
         let vertices: Vec<u32> = (0..u.len() as u32).collect();
         let faces = vec![0u32; u.len()];
         assert!(split_over_planes(&vertices, &faces, &u, [3, 3, 3], &mut Corners::default(), 100).is_none());
+    }
+
+    #[test]
+    fn walls_of_no_thickness_are_removed() {
+        // Two unit cubes sharing the face x = 1 (its vertices and triangles too): the face is
+        // there twice, once each way, between two closed solids; without it they are one closed
+        // box of volume 2 whose edges are each used by two triangles.
+        let a = box_mesh([0.0; 3], [1.0; 3], [1, 1, 1]).unwrap();
+        let b = open_box([1.0, 0.0, 0.0], [2.0, 1.0, 1.0], 1.0);
+        let mut m = a.clone();
+        let map: Vec<u32> = b
+            .positions
+            .iter()
+            .map(|p| match a.positions.iter().position(|q| q == p) {
+                Some(i) => i as u32,
+                None => {
+                    m.positions.push(*p);
+                    (m.positions.len() - 1) as u32
+                }
+            })
+            .collect();
+        m.triangles.extend(b.triangles.iter().map(|t| t.map(|v| map[v as usize])));
+        let shared: Vec<[u32; 3]> = a
+            .triangles
+            .iter()
+            .filter(|t| t.iter().all(|&v| a.positions[v as usize][0] == 1.0))
+            .map(|t| [t[0], t[2], t[1]])
+            .collect();
+        m.triangles.extend(shared);
+        assert_eq!(m.positions.len(), 12);
+        assert!(m.edge_stats().non_manifold > 0);
+        let on_wall: Vec<u32> = (0..m.triangles.len() as u32)
+            .filter(|&f| m.triangles[f as usize].iter().all(|&v| m.positions[v as usize][0] == 1.0))
+            .collect();
+        assert_eq!(on_wall.len(), 4);
+        // Each triangle's voxel is its index here, so the voxels left name the triangles left.
+        let mut voxels: Vec<u32> = (0..m.triangles.len() as u32).collect();
+        assert_eq!(remove_cancelling_pairs(&mut m, &mut voxels), 2);
+        assert_eq!((m.triangles.len(), voxels.len()), (20, 20));
+        assert!(voxels.iter().all(|v| !on_wall.contains(v)) && voxels.is_sorted());
+        assert_closed_and_oriented(&m);
+        assert_eq!(m.edge_stats().non_manifold, 0);
+        assert!((m.signed_volume() - 2.0).abs() < 1e-12, "volume {}", m.signed_volume());
+        // Nothing to remove on a closed box.
+        let mut c = a.clone();
+        let mut v = vec![0u32; c.triangles.len()];
+        assert_eq!(remove_cancelling_pairs(&mut c, &mut v), 0);
+        assert_eq!(c.triangles, a.triangles);
     }
 
     #[test]

@@ -388,6 +388,11 @@ pub struct RetargetReport {
     /// Vertices added at voxel corners where such a loop's caps on three planes meet.
     #[serde(default)]
     pub cap_corners: usize,
+    /// Pairs of triangles on the same three vertices facing opposite ways (walls of no
+    /// thickness, such as a cap over an input face lying on the voxel face it caps), removed
+    /// after capping.
+    #[serde(default)]
+    pub cancelled_pairs: usize,
     /// Voxel face planes whose openings cross (copies' sections overlapping) and were capped by
     /// the winding rule.
     #[serde(default)]
@@ -755,6 +760,7 @@ impl RetargetSession {
             cap_triangles: stitched.capped.triangles,
             capped_folded_loops: stitched.capped.split_loops,
             cap_corners: stitched.capped.corners,
+            cancelled_pairs: stitched.capped.cancelled_pairs,
             winding_cap_planes: stitched.capped.winding_planes,
             filled_holes: stitched.filled.filled,
             fill_triangles: stitched.filled.triangles,
