@@ -86,6 +86,9 @@ pub(crate) struct Capped {
     /// Pairs of triangles on the same vertices facing opposite ways, removed after capping
     /// ([`remove_cancelling_pairs`]).
     pub cancelled_pairs: usize,
+    /// Closed parts lying flat on one voxel face plane, removed after capping
+    /// ([`remove_flat_sheets`]).
+    pub flat_sheets: usize,
 }
 
 /// A boundary loop on a voxel face plane: mesh vertices in the order of the boundary edges, their
@@ -335,6 +338,7 @@ pub(crate) fn cap_openings(
         mesh.remove_unreferenced_vertices();
     }
     capped.cancelled_pairs = remove_cancelling_pairs(mesh, triangle_voxels);
+    capped.flat_sheets = remove_flat_sheets(mesh, triangle_voxels, &grid);
     capped
 }
 
@@ -929,6 +933,72 @@ fn split_over_planes(
     Some((parts, points))
 }
 
+/// Removes the parts of the mesh (connected through vertices) that lie flat on one voxel face
+/// plane and are closed: two layers of no thickness over the same region, triangulated
+/// differently (a cap over input faces lying on the voxel face it caps, where they meet no
+/// other surface; [`remove_cancelling_pairs`] removes such layers where their triangles match).
+/// They enclose no volume and show nothing; on the CGAL cheese grown by +1 along all three
+/// offsets two such parts of 12 and 14 triangles were the output's only other components.
+/// `grid` maps model space to grid coordinates. Returns the number of parts removed.
+fn remove_flat_sheets(
+    mesh: &mut TriMesh,
+    triangle_voxels: &mut Vec<u32>,
+    grid: &dyn Fn(Point3) -> [f64; 3],
+) -> usize {
+    let mut uf = UnionFind::new(mesh.positions.len());
+    for t in &mesh.triangles {
+        uf.union(t[0] as usize, t[1] as usize);
+        uf.union(t[0] as usize, t[2] as usize);
+    }
+    // Per part (by root): the planes (grid coordinate per axis) every vertex so far lies on.
+    let mut planes: HashMap<usize, [Option<f64>; 3], FixedState> = HashMap::default();
+    for t in &mesh.triangles {
+        for &v in t {
+            let u = grid(mesh.positions[v as usize]);
+            let entry = planes.entry(uf.find(v as usize)).or_insert_with(|| u.map(|c| Some(c.round())));
+            for d in 0..3 {
+                if entry[d].is_some_and(|r| (u[d] - r).abs() > PLANE_EPS) {
+                    entry[d] = None;
+                }
+            }
+        }
+    }
+    let mut flat: HashMap<usize, bool, FixedState> =
+        planes.iter().map(|(&root, p)| (root, p.iter().any(Option::is_some))).collect();
+    if !flat.values().any(|&f| f) {
+        return 0;
+    }
+    // Closed: every edge of a flat part used as often one way as the other.
+    let mut balance: HashMap<(u32, u32), i32, FixedState> = HashMap::default();
+    for t in &mesh.triangles {
+        if flat[&uf.find(t[0] as usize)] {
+            for k in 0..3 {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                *balance.entry((a.min(b), a.max(b))).or_default() += if a < b { 1 } else { -1 };
+            }
+        }
+    }
+    for (&(a, _), &n) in &balance {
+        if n != 0 {
+            flat.insert(uf.find(a as usize), false);
+        }
+    }
+    let drop: Vec<bool> = mesh.triangles.iter().map(|t| flat[&uf.find(t[0] as usize)]).collect();
+    let removed = flat.values().filter(|&&f| f).count();
+    let mut f = 0;
+    mesh.triangles.retain(|_| {
+        f += 1;
+        !drop[f - 1]
+    });
+    let mut f = 0;
+    triangle_voxels.retain(|_| {
+        f += 1;
+        !drop[f - 1]
+    });
+    mesh.remove_unreferenced_vertices();
+    removed
+}
+
 /// Removes the pairs of triangles that have the same three vertices and face opposite ways,
 /// keeping `triangle_voxels` in step; returns the number of pairs removed.
 ///
@@ -1273,6 +1343,29 @@ mod tests {
         let mut v = vec![0u32; c.triangles.len()];
         assert_eq!(remove_cancelling_pairs(&mut c, &mut v), 0);
         assert_eq!(c.triangles, a.triangles);
+    }
+
+    #[test]
+    fn flat_closed_sheets_are_removed() {
+        // A closed box and, apart from it, a square on the voxel face x = 1 twice, once each way
+        // and triangulated along different diagonals: a closed part of no thickness.
+        let mut m = open_box([1.0, 0.0, 0.0], [2.0, 1.0, 1.0], 3.0);
+        let b = m.positions.len() as u32;
+        m.positions.extend([[1.0, 2.0, 2.0], [1.0, 3.0, 2.0], [1.0, 3.0, 3.0], [1.0, 2.0, 3.0]]);
+        m.triangles.extend([[b, b + 1, b + 2], [b, b + 2, b + 3], [b, b + 3, b + 1], [b + 1, b + 3, b + 2]]);
+        assert_eq!(m.edge_stats().boundary, 0);
+        let (lattice, grid_in) = cells([2, 4, 4]);
+        let grid = |p: Point3| -> [f64; 3] {
+            let c = lattice.canonical(p);
+            std::array::from_fn(|d| (c[d] - grid_in.origin[d]) / grid_in.pitch[d])
+        };
+        let mut voxels: Vec<u32> = (0..m.triangles.len() as u32).collect();
+        assert_eq!(remove_flat_sheets(&mut m, &mut voxels, &grid), 1);
+        assert_eq!((m.triangles.len(), m.positions.len()), (12, 8));
+        assert_eq!(voxels, (0..12).collect::<Vec<u32>>());
+        assert!((m.signed_volume() - 1.0).abs() < 1e-12);
+        // The box's face on x = 1 is flat, but the box is not: it stays.
+        assert_eq!(remove_flat_sheets(&mut m, &mut voxels, &grid), 0);
     }
 
     #[test]

@@ -393,6 +393,10 @@ pub struct RetargetReport {
     /// after capping.
     #[serde(default)]
     pub cancelled_pairs: usize,
+    /// Closed parts lying flat on one voxel face plane (two layers of no thickness that do not
+    /// match triangle for triangle), removed after capping.
+    #[serde(default)]
+    pub flat_sheets: usize,
     /// Voxel face planes whose openings cross (copies' sections overlapping) and were capped by
     /// the winding rule.
     #[serde(default)]
@@ -761,6 +765,7 @@ impl RetargetSession {
             capped_folded_loops: stitched.capped.split_loops,
             cap_corners: stitched.capped.corners,
             cancelled_pairs: stitched.capped.cancelled_pairs,
+            flat_sheets: stitched.capped.flat_sheets,
             winding_cap_planes: stitched.capped.winding_planes,
             filled_holes: stitched.filled.filled,
             fill_triangles: stitched.filled.triangles,
