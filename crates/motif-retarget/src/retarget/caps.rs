@@ -985,17 +985,7 @@ fn remove_flat_sheets(
     }
     let drop: Vec<bool> = mesh.triangles.iter().map(|t| flat[&uf.find(t[0] as usize)]).collect();
     let removed = flat.values().filter(|&&f| f).count();
-    let mut f = 0;
-    mesh.triangles.retain(|_| {
-        f += 1;
-        !drop[f - 1]
-    });
-    let mut f = 0;
-    triangle_voxels.retain(|_| {
-        f += 1;
-        !drop[f - 1]
-    });
-    mesh.remove_unreferenced_vertices();
+    drop_triangles(mesh, triangle_voxels, &drop);
     removed
 }
 
@@ -1035,19 +1025,19 @@ pub(crate) fn remove_cancelling_pairs(mesh: &mut TriMesh, triangle_voxels: &mut 
         pairs += k;
     }
     if pairs > 0 {
-        let mut f = 0;
-        mesh.triangles.retain(|_| {
-            f += 1;
-            !drop[f - 1]
-        });
-        let mut f = 0;
-        triangle_voxels.retain(|_| {
-            f += 1;
-            !drop[f - 1]
-        });
-        mesh.remove_unreferenced_vertices();
+        drop_triangles(mesh, triangle_voxels, &drop);
     }
     pairs
+}
+
+/// Removes the triangles marked in `drop` (and their entries in `triangle_voxels`), then the
+/// vertices no triangle uses.
+fn drop_triangles(mesh: &mut TriMesh, triangle_voxels: &mut Vec<u32>, drop: &[bool]) {
+    let mut kept = drop.iter().map(|&d| !d);
+    mesh.triangles.retain(|_| kept.next().unwrap_or(true));
+    let mut kept = drop.iter().map(|&d| !d);
+    triangle_voxels.retain(|_| kept.next().unwrap_or(true));
+    mesh.remove_unreferenced_vertices();
 }
 
 /// Removes the spikes of a closed polygon on the face plane across `axis`: vertices where it
