@@ -46,6 +46,11 @@
 //! `slice_plane(cap=True)`); where two copies' parts touch at the plane, the caps make two closed
 //! parts touching, or, when one's opening lies inside the other's, one surface joined around it.
 //!
+//! After capping, walls of no thickness are removed: pairs of triangles on the same three
+//! vertices facing opposite ways ([`remove_cancelling_pairs`]) and closed parts lying flat on one
+//! voxel face ([`remove_flat_sheets`]), where a cap was laid over input faces lying on the voxel
+//! face it caps.
+//!
 //! Capping runs only when the input is closed: an input with its own open boundary (a scan, a
 //! single-sided facade) is stitched as it is.
 
