@@ -227,6 +227,7 @@ mod tests {
                     max: [o[0] + w + 0.1, o[1] + h + 0.1, o[2] + 0.1],
                 },
                 footprint: None,
+                turn: 0.0,
             })
             .collect();
         Class { words: vec![word], centre_word: word, extent: [w, h, 0.2], instances, cluster: word }

@@ -170,6 +170,9 @@ pub struct Instance {
     /// The block's size per world axis measured free of its turn about the class's thinnest
     /// axis, when [`crate::extent`] measured it (`None`: the box's extent stands for it).
     pub footprint: Option<Point3>,
+    /// The turn of that footprint's rectangle about the thinnest axis, folded into [0, π/4]
+    /// radians (0 when upright or unmeasured): how far the block is turned from the world axes.
+    pub turn: f64,
 }
 
 /// One building-block class.
@@ -839,6 +842,7 @@ fn assemble(
                 frame,
                 aabb,
                 footprint: None,
+                turn: 0.0,
             }
         })
         .collect();

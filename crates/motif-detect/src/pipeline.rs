@@ -122,6 +122,7 @@ impl DetectOptions {
             ("extent.split_distance", self.extent.split_distance),
             ("extent.merge_distance", self.extent.merge_distance),
             ("extent.spread_floor", self.extent.spread_floor),
+            ("extent.spread_cap", self.extent.spread_cap),
             ("extent.segment_distance", self.extent.segment_distance),
         ] {
             if !(v.is_finite() && v > 0.0) {
@@ -156,6 +157,10 @@ impl DetectOptions {
         if !(self.extent.segment_contrast.is_finite() && self.extent.segment_contrast >= 0.0) {
             let v = self.extent.segment_contrast;
             return bad("extent.segment_contrast", format!("must be finite and ≥ 0, got {v}"));
+        }
+        if self.extent.spread_cap < self.extent.spread_floor {
+            let (c, f) = (self.extent.spread_cap, self.extent.spread_floor);
+            return bad("extent.spread_cap", format!("must be at least extent.spread_floor ({f}), got {c}"));
         }
         if self.dictionary.words < 2 {
             return bad("dictionary.words", format!("must be at least 2, got {}", self.dictionary.words));

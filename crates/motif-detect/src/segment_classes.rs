@@ -301,6 +301,7 @@ pub(crate) fn segment_classes(
                     frame: c.frame,
                     aabb: padded(&seg.boxes[c.segment]),
                     footprint: None,
+                    turn: 0.0,
                 }
             })
             .collect();
@@ -402,6 +403,7 @@ mod tests {
                 frame: IDENTITY4,
                 aabb: Aabb { min: [25.6, -0.1, 1.7], max: [26.4, 2.1, 2.3] },
                 footprint: None,
+                turn: 0.0,
             }],
             cluster: 4,
         };
