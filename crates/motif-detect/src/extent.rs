@@ -1261,6 +1261,20 @@ mod tests {
         assert!(close([-b.min[0], b.max[1], -b.min[2]], got.max), "{b:?}");
     }
 
+    /// Instance `k` of a test class (feature `k` its centre) with this box, footprint and turn.
+    fn instance(k: usize, aabb: Aabb, footprint: Option<Point3>, turn: f64) -> Instance {
+        Instance {
+            centre: k,
+            flip: 0,
+            features: vec![k],
+            links: vec![],
+            frame: IDENTITY4,
+            aabb,
+            footprint,
+            turn,
+        }
+    }
+
     /// A class of instances with boxes `w × h × 0.5` placed 3 m apart along x, starting at `x0`.
     fn class(sizes: &[(f64, f64)], x0: f64, word: usize) -> Class {
         let instances = sizes
@@ -1268,16 +1282,7 @@ mod tests {
             .enumerate()
             .map(|(k, &(w, h))| {
                 let x = x0 + 3.0 * k as f64;
-                Instance {
-                    centre: k,
-                    flip: 0,
-                    features: vec![k],
-                    links: vec![],
-                    frame: IDENTITY4,
-                    aabb: Aabb { min: [x, 0.0, 0.0], max: [x + w, h, 0.5] },
-                    footprint: None,
-                    turn: 0.0,
-                }
+                instance(k, Aabb { min: [x, 0.0, 0.0], max: [x + w, h, 0.5] }, None, 0.0)
             })
             .collect();
         Class { words: vec![word], centre_word: word, extent: [1.0, 1.0, 0.5], instances, cluster: word }
@@ -1356,17 +1361,7 @@ mod tests {
                 let ext = [fp[0] * grow, 1.5, fp[2] * grow];
                 let aabb = Aabb { min: [x, 0.0, 0.0], max: [x + ext[0], ext[1], ext[2]] };
                 let footprint = Some(if turned { fp } else { aabb.extent() });
-                let turn = if turned { 0.5 } else { 0.0 };
-                Instance {
-                    centre: k,
-                    flip: 0,
-                    features: vec![k],
-                    links: vec![],
-                    frame: IDENTITY4,
-                    aabb,
-                    footprint,
-                    turn,
-                }
+                instance(k, aabb, footprint, if turned { 0.5 } else { 0.0 })
             })
             .collect();
         Class { words: vec![word], centre_word: word, extent: [4.5, 1.5, 4.5], instances, cluster: word }
