@@ -604,6 +604,13 @@ pub struct BenchDetectArgs {
     /// Classes of unexplained segments repeated by size (see `motif detect --repeated-segments`).
     #[arg(long, value_enum, default_value_t = RepeatedSegmentsArg::Classes, value_name = "MODE")]
     pub repeated_segments: RepeatedSegmentsArg,
+    /// Keep the classes of the size split and merge instead of moving each instance to the class
+    /// whose depth images of the surroundings its own resembles (the extent stage's last step,
+    /// motif_detect::content; not in the thesis, on by default: under strong variation window
+    /// styles share their sizes but not their transoms and shutters). No effect with
+    /// `--regroup none`.
+    #[arg(long)]
+    pub no_content: bool,
     /// Mean PR and stress curves of EM + SC per difficulty (PNG).
     #[arg(long, value_name = "PNG")]
     pub plot: Option<PathBuf>,
@@ -841,6 +848,13 @@ pub struct DetectArgs {
     /// posts taller than 64ε and bins with few features. No effect with `--regroup none`.
     #[arg(long, value_enum, default_value_t = RepeatedSegmentsArg::Classes, value_name = "MODE")]
     pub repeated_segments: RepeatedSegmentsArg,
+    /// Keep the classes of the size split and merge instead of moving each instance to the class
+    /// whose depth images of the surroundings its own resembles (the extent stage's last step,
+    /// motif_detect::content; not in the thesis, on by default: under strong variation window
+    /// styles share their sizes but not their transoms and shutters). No effect with
+    /// `--regroup none`.
+    #[arg(long)]
+    pub no_content: bool,
     /// Keep the extent stage's boxes as grown instead of fitting each to the points it holds
     /// (the stage's last step, on by default: boxes padded around creases and grown to segments
     /// reach past the block; fitted, they overlap the true blocks more, F at τ = 0.5 rose from

@@ -68,6 +68,9 @@
 //!    0.700 / 0.648 / 0.488. The trim of 0.2% is the only value tried; a prototype on the same
 //!    detections (fitting to the input points rather than the resampled ones) gave these figures
 //!    within 0.005 at τ = 0.125 and 0.04 at τ = 0.5.
+//! 8. **Content.** Each instance moves to the class whose depth images its own resembles
+//!    ([`crate::content`]): under strong variation the sizes of two window styles overlap, and
+//!    what tells them apart is what the box holds (one transom or two, shutters beside it).
 //!
 //! # On by default
 //! [`Regroup::Extent`] is the default (`motif detect --regroup none` gives the thesis's output).
@@ -212,6 +215,7 @@ use motif_core::geometry::Aabb;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::content::{ContentOptions, ContentReport, reassign};
 use crate::grid::SpatialHash;
 use crate::instances::{Class, Instance, InstanceOptions, overlaps_any};
 use crate::preprocess::{Feature, Preprocessed};
@@ -302,6 +306,9 @@ pub struct ExtentOptions {
     /// and 2.5 cut distances around it number at most this many times those inside one cut
     /// distance (a peak of the size distribution, not a slice of random sizes). Default 0.75.
     pub segment_contrast: f64,
+    /// Step 8: instances reassigned to the class whose depth images theirs resembles
+    /// ([`crate::content`]).
+    pub content: ContentOptions,
 }
 
 impl Default for ExtentOptions {
@@ -324,6 +331,7 @@ impl Default for ExtentOptions {
             segment_contrast: 0.75,
             fit_boxes: true,
             fit_trim: 0.002,
+            content: ContentOptions::default(),
         }
     }
 }
@@ -349,6 +357,8 @@ pub struct ExtentReport {
     pub segment_classes: SegmentClassesReport,
     /// Instance boxes that step 7 made smaller.
     pub fitted: usize,
+    /// What step 8 did ([`crate::content`]).
+    pub content: ContentReport,
 }
 
 impl Segments {
@@ -710,7 +720,7 @@ pub(crate) fn median_box_size(instances: &[Instance]) -> Point3 {
 }
 
 /// The axis along which a class's median box size is smallest (lowest axis on ties).
-fn thinnest(instances: &[Instance]) -> usize {
+pub(crate) fn thinnest(instances: &[Instance]) -> usize {
     let med = median_box_size(instances);
     (0..3).fold(0, |best, k| if med[k] < med[best] { k } else { best })
 }
@@ -744,7 +754,7 @@ const FREE_TURN: f64 = 10.0 * std::f64::consts::PI / 180.0;
 /// at 80° measures as a car at 10° transposed, and the split and merge would keep the two
 /// apart. Facade elements stand upright (their footprint is their box), and there width and
 /// height are not interchangeable: a tall window is not a wide one.
-fn turns_freely(instances: &[Instance]) -> bool {
+pub(crate) fn turns_freely(instances: &[Instance]) -> bool {
     let turned = instances.iter().filter(|i| i.turn >= FREE_TURN).count();
     2 * turned > instances.len()
 }
@@ -901,6 +911,7 @@ pub fn regroup(
     if o.fit_boxes {
         report.fitted = fit_boxes(&mut classes, &pre.points, &hash, eps, o.fit_trim);
     }
+    report.content = reassign(&mut classes, &pre.points, &hash, eps, merge_overlap, &o.content);
     // Stable: the co-occurrence classes keep their order among classes of equal size.
     classes.sort_by_key(|c| std::cmp::Reverse(c.instances.len()));
     (classes, report)

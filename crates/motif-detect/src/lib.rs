@@ -13,8 +13,10 @@
 //!   the thesis);
 //! - [`extent`]: instance extents by segmentation and classes regrouped by size (not in the
 //!   thesis);
+//! - [`content`]: instances reassigned to classes by depth images of their surroundings (not in
+//!   the thesis; the extent stage's last step);
 //! - [`segment_classes`]: classes of unexplained segments repeated by size (not in the thesis;
-//!   the extent stage's last step);
+//!   a step of the extent stage);
 //! - [`eval`]: the evaluation protocol of thesis 5.5.2 (box matching, precision, recall, F, the
 //!   PR curve by class removal and the stress curve over the overlap threshold τ);
 //! - [`plot`]: the PR and stress curves as a PNG (like the thesis's Fig. 5.9);
@@ -25,6 +27,7 @@
 #![warn(missing_docs)]
 
 pub mod class_merge;
+pub mod content;
 pub mod cooccurrence;
 pub mod detection;
 pub mod dictionary;

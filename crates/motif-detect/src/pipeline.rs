@@ -124,6 +124,7 @@ impl DetectOptions {
             ("extent.spread_floor", self.extent.spread_floor),
             ("extent.spread_cap", self.extent.spread_cap),
             ("extent.segment_distance", self.extent.segment_distance),
+            ("extent.content.window", self.extent.content.window),
         ] {
             if !(v.is_finite() && v > 0.0) {
                 return bad(name, format!("must be positive and finite, got {v}"));
@@ -161,6 +162,17 @@ impl DetectOptions {
         if self.extent.spread_cap < self.extent.spread_floor {
             let (c, f) = (self.extent.spread_cap, self.extent.spread_floor);
             return bad("extent.spread_cap", format!("must be at least extent.spread_floor ({f}), got {c}"));
+        }
+        if !(self.extent.content.size_weight.is_finite() && self.extent.content.size_weight >= 0.0) {
+            let v = self.extent.content.size_weight;
+            return bad("extent.content.size_weight", format!("must be finite and ≥ 0, got {v}"));
+        }
+        if !(0.0..1.0).contains(&self.extent.content.margin) {
+            let v = self.extent.content.margin;
+            return bad("extent.content.margin", format!("must be at least 0 and below 1, got {v}"));
+        }
+        if self.extent.content.grid == 0 {
+            return bad("extent.content.grid", "must be at least 1, got 0".into());
         }
         if self.dictionary.words < 2 {
             return bad("dictionary.words", format!("must be at least 2, got {}", self.dictionary.words));

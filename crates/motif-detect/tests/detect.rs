@@ -201,7 +201,7 @@ fn absurd_epsilon_is_refused_unless_forced() {
 #[test]
 fn options_out_of_range_are_refused_by_name() {
     let (cloud, _) = facade(2_000);
-    let cases: [(&str, fn(&mut DetectOptions)); 8] = [
+    let cases: [(&str, fn(&mut DetectOptions)); 11] = [
         ("em.peak_share", |o| o.em.peak_share = 1.5),
         ("extent.segment_distance", |o| o.extent.segment_distance = -0.2),
         ("extent.segment_contrast", |o| o.extent.segment_contrast = f64::INFINITY),
@@ -210,6 +210,9 @@ fn options_out_of_range_are_refused_by_name() {
         ("instances.box_trim", |o| o.instances.box_trim = 0.5),
         ("dictionary.words", |o| o.dictionary.words = 1),
         ("extent.spread_cap", |o| o.extent.spread_cap = 0.01),
+        ("extent.content.window", |o| o.extent.content.window = 0.0),
+        ("extent.content.margin", |o| o.extent.content.margin = 1.0),
+        ("extent.content.grid", |o| o.extent.content.grid = 0),
     ];
     for (name, break_it) in cases {
         let mut o = options();

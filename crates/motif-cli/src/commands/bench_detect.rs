@@ -99,6 +99,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         o.em.peak_share = a.peak_share;
         o.extent.regroup = a.regroup.into();
         o.extent.repeated_segments = a.repeated_segments.into();
+        o.extent.content.enabled = !a.no_content;
         o
     };
     super::detect::validate_options(&options(Method::EmSc, g.seed))?;
@@ -189,7 +190,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     }
     if !crate::output::json_on_stdout(&a.json.json) {
         println!(
-            "{} × {} scenes of {} points, ε = {} × diagonal, minimum support {}, peak share {}, regroup {}, repeated segments {}, τ = {}",
+            "{} × {} scenes of {} points, ε = {} × diagonal, minimum support {}, peak share {}, regroup {}, repeated segments {}, content {}, τ = {}",
             a.kind,
             a.scenes,
             a.points,
@@ -198,6 +199,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             a.peak_share,
             if a.regroup == RegroupArg::Extent { "by extent" } else { "off" },
             if a.repeated_segments == RepeatedSegmentsArg::Classes { "as classes" } else { "off" },
+            if a.no_content { "off" } else { "on" },
             eval.tau
         );
         println!(
@@ -246,7 +248,8 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         &serde_json::json!({ "rows": rows, "em_lead": leads, "stages": stages, "epsilon": a.epsilon,
             "min_support": a.min_support, "peak_share": a.peak_share, "points": a.points,
             "regroup": a.regroup == RegroupArg::Extent,
-            "repeated_segments": a.repeated_segments == RepeatedSegmentsArg::Classes }),
+            "repeated_segments": a.repeated_segments == RepeatedSegmentsArg::Classes,
+            "content": !a.no_content }),
     )
 }
 

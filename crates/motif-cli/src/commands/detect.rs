@@ -77,6 +77,7 @@ pub fn options(a: &DetectArgs, g: &GlobalArgs) -> DetectOptions {
     o.extent.regroup = a.regroup.into();
     o.extent.repeated_segments = a.repeated_segments.into();
     o.extent.fit_boxes = !a.no_box_fit;
+    o.extent.content.enabled = !a.no_content;
     o.extent.fit_trim = a.fit_trim;
     o
 }
