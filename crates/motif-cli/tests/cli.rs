@@ -773,18 +773,28 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
         assert!(o.status.success(), "{}", stderr(&o));
     }
     // `--no-box-fit` keeps the grown boxes: the same classes and instances, each box holding the
-    // fitted one.
-    let args =
-        ["detect", "s.ply", "-o", "r6.json", "--epsilon", "0.002", "--no-box-fit", "--json", "r6.rep.json"];
-    let o = motif(&args, dir.path());
-    assert!(o.status.success(), "{}", stderr(&o));
+    // fitted one. Both without the reassignment by content (`--no-content`), which compares
+    // the boxes' surroundings and so may move instances differently for grown boxes.
+    let base = ["detect", "s.ply", "--epsilon", "0.002", "--no-content"];
+    for (out, extra) in [("r6", Some("--no-box-fit")), ("r8", None)] {
+        let (res, rep) = (format!("{out}.json"), format!("{out}.rep.json"));
+        let mut args = base.to_vec();
+        args.extend(["-o", &res, "--json", &rep]);
+        args.extend(extra);
+        let o = motif(&args, dir.path());
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
     let read = |f: &str| -> serde_json::Value {
         serde_json::from_slice(&std::fs::read(dir.path().join(f)).unwrap()).unwrap()
     };
     let rep = read("r6.rep.json");
     assert_eq!(rep["options"]["extent"]["fit_boxes"], false);
     assert_eq!(rep["report"]["extent"]["fitted"], 0);
-    let (grown, fitted) = (read("r6.json"), read("r2.json"));
+    // `--no-content` is in the report, and the step did nothing; by default it ran.
+    assert_eq!(rep["options"]["extent"]["content"]["enabled"], false);
+    assert_eq!(rep["report"]["extent"]["content"]["described"], 0);
+    assert!(read("r2.rep.json")["report"]["extent"]["content"]["described"].as_u64().unwrap() > 0);
+    let (grown, fitted) = (read("r6.json"), read("r8.json"));
     let (gc, fc) = (grown["classes"].as_array().unwrap(), fitted["classes"].as_array().unwrap());
     assert_eq!(gc.len(), fc.len());
     let mut smaller = 0;
@@ -808,7 +818,7 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
     let o = motif(&["detect", "s.ply", "-o", "r5.json", "--regroup", "sideways"], dir.path());
     assert!(!o.status.success() && stderr(&o).contains("sideways"), "{}", stderr(&o));
     assert!(!dir.path().join("r5.json").exists());
-    // Classes of repeated segments (the extent stage's last step) are on by default, in the
+    // Classes of repeated segments (a step of the extent stage) are on by default, in the
     // options and the report; `--repeated-segments none` turns them off.
     for (mode, want) in [(None, "classes"), (Some("none"), "none")] {
         let mut args = vec![
