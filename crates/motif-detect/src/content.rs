@@ -388,7 +388,6 @@ pub fn reassign(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use motif_core::geometry::IDENTITY4;
 
     /// Grid spacing of the test walls, and ε.
     const H: f64 = 0.04;
@@ -449,16 +448,15 @@ mod tests {
     }
 
     fn instance(k: usize, aabb: Aabb, turn: f64) -> Instance {
-        Instance {
-            centre: k,
-            flip: 0,
-            features: vec![k],
-            links: vec![],
-            frame: IDENTITY4,
-            aabb,
-            footprint: None,
-            turn,
-        }
+        crate::instances::test_instance(k, aabb, None, turn)
+    }
+
+    /// The windows of styles `two_bars` ([`windows`]), their wall and its spatial hash.
+    fn scene(two_bars: [bool; 8]) -> (Vec<Window>, Vec<Point3>, SpatialHash) {
+        let ws = windows(two_bars);
+        let pts = wall(&ws);
+        let hash = SpatialHash::new(&pts, 8.0 * H);
+        (ws, pts, hash)
     }
 
     /// Eight windows 3 m apart, sizes varied by up to 15% per axis; styles as `two_bars`.
@@ -478,9 +476,7 @@ mod tests {
 
     #[test]
     fn depth_images_tell_styles_apart_where_sizes_do_not() {
-        let ws = windows([false, false, true, true, false, true, false, true]);
-        let pts = wall(&ws);
-        let hash = SpatialHash::new(&pts, 8.0 * H);
+        let (ws, pts, hash) = scene([false, false, true, true, false, true, false, true]);
         let o = ContentOptions::default();
         let d: Vec<Descriptor> =
             ws.iter().map(|w| describe(&opening(w), 2, &pts, &hash, H, &o).expect("described")).collect();
@@ -508,9 +504,7 @@ mod tests {
     #[test]
     fn instances_move_to_the_class_of_their_style() {
         // Class 0 holds three one-transom windows and a two-transom one, class 1 the reverse.
-        let ws = windows([false, false, false, true, true, true, true, false]);
-        let pts = wall(&ws);
-        let hash = SpatialHash::new(&pts, 8.0 * H);
+        let (ws, pts, hash) = scene([false, false, false, true, true, true, true, false]);
         let mut classes = vec![class_of(&ws, &[0, 1, 2, 3], 0, 0.0), class_of(&ws, &[4, 5, 6, 7], 1, 0.0)];
         let r = reassign(&mut classes, &pts, &hash, H, 0.5, &ContentOptions::default());
         assert_eq!((r.described, r.moved, r.duplicates, r.dropped_classes), (8, 2, 0, 0), "{r:?}");
@@ -531,9 +525,7 @@ mod tests {
 
     #[test]
     fn classes_of_freely_turned_blocks_neither_give_nor_take() {
-        let ws = windows([false, false, false, true, true, true, true, false]);
-        let pts = wall(&ws);
-        let hash = SpatialHash::new(&pts, 8.0 * H);
+        let (ws, pts, hash) = scene([false, false, false, true, true, true, true, false]);
         // Class 1's blocks are turned by 0.5 rad (cars at any heading): its depth images mean
         // nothing, so class 0's odd window has no class to go to, and class 1 keeps its own.
         let mut classes = vec![class_of(&ws, &[0, 1, 2, 3], 0, 0.0), class_of(&ws, &[4, 5, 6, 7], 1, 0.5)];
@@ -569,9 +561,7 @@ mod tests {
         // Window 3 (two transoms) sits in the one-transom class; the two-transom class also holds
         // a box in front of window 3 (a balcony found with it) that overlaps it by 71%. Moving
         // there would make window 3 a repeat of that box, so it stays.
-        let ws = windows([false, false, false, true, true, true, true, false]);
-        let pts = wall(&ws);
-        let hash = SpatialHash::new(&pts, 8.0 * H);
+        let (ws, pts, hash) = scene([false, false, false, true, true, true, true, false]);
         let front = {
             let b = opening(&ws[3]);
             instance(9, Aabb { min: [b.min[0], b.min[1], -0.1], max: [b.max[0], b.max[1], 1.0] }, 0.0)

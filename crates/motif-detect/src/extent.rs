@@ -1049,7 +1049,6 @@ pub fn split_and_merge(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use motif_core::geometry::IDENTITY4;
 
     /// Points every `h` on the rectangle `origin + s·u + t·v` (s, t in [0, 1]), with `normal`.
     fn patch(origin: Point3, u: Point3, v: Point3, normal: Point3, h: f64, out: &mut Vec<(Point3, Point3)>) {
@@ -1275,18 +1274,8 @@ mod tests {
         assert!(close([-b.min[0], b.max[1], -b.min[2]], got.max), "{b:?}");
     }
 
-    /// Instance `k` of a test class (feature `k` its centre) with this box, footprint and turn.
     fn instance(k: usize, aabb: Aabb, footprint: Option<Point3>, turn: f64) -> Instance {
-        Instance {
-            centre: k,
-            flip: 0,
-            features: vec![k],
-            links: vec![],
-            frame: IDENTITY4,
-            aabb,
-            footprint,
-            turn,
-        }
+        crate::instances::test_instance(k, aabb, footprint, turn)
     }
 
     /// A class of instances with boxes `w × h × 0.5` placed 3 m apart along x, starting at `x0`.

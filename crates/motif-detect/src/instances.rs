@@ -870,6 +870,21 @@ pub(crate) fn overlaps_any(inst: &Instance, others: &[Instance], share: f64) -> 
     })
 }
 
+/// Instance `k` of a test class (feature `k` its centre) with this box, footprint and turn.
+#[cfg(test)]
+pub(crate) fn test_instance(k: usize, aabb: Aabb, footprint: Option<Point3>, turn: f64) -> Instance {
+    Instance {
+        centre: k,
+        flip: 0,
+        features: vec![k],
+        links: vec![],
+        frame: motif_core::geometry::IDENTITY4,
+        aabb,
+        footprint,
+        turn,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
