@@ -144,7 +144,7 @@ impl From<RegroupArg> for motif_detect::extent::Regroup {
     }
 }
 
-/// The last step of `motif detect`'s extent stage (motif_detect::segment_classes).
+/// A step of `motif detect`'s extent stage (motif_detect::segment_classes).
 #[derive(Debug, Clone, Copy, ValueEnum, Default, PartialEq)]
 pub enum RepeatedSegmentsArg {
     /// Only the co-occurrence classes.
@@ -840,7 +840,7 @@ pub struct DetectArgs {
     /// every level of the benchmark scenes). `none` gives the thesis's boxes and classes.
     #[arg(long, value_enum, default_value_t = RegroupArg::Extent, value_name = "MODE")]
     pub regroup: RegroupArg,
-    /// The extent stage's last step (motif_detect::segment_classes; not in the thesis, on by
+    /// A step of the extent stage (motif_detect::segment_classes; not in the thesis, on by
     /// default): segments of the scan that no class explains (off the wall and ground planes, at
     /// least one HOC cell wide in two directions, with enough features) are grouped by their
     /// sizes along their own axes, and groups of three or more that stand out of the size
@@ -856,7 +856,7 @@ pub struct DetectArgs {
     #[arg(long)]
     pub no_content: bool,
     /// Keep the extent stage's boxes as grown instead of fitting each to the points it holds
-    /// (the stage's last step, on by default: boxes padded around creases and grown to segments
+    /// (a step of the stage, on by default: boxes padded around creases and grown to segments
     /// reach past the block; fitted, they overlap the true blocks more, F at τ = 0.5 rose from
     /// 0.29 to 0.65 on medium street scenes). No effect with `--regroup none`.
     #[arg(long)]
