@@ -605,10 +605,11 @@ pub struct BenchDetectArgs {
     #[arg(long, value_enum, default_value_t = RepeatedSegmentsArg::Classes, value_name = "MODE")]
     pub repeated_segments: RepeatedSegmentsArg,
     /// Keep the classes of the size split and merge instead of moving each instance to the class
-    /// whose depth images of the surroundings its own resembles (the extent stage's last step,
-    /// motif_detect::content; not in the thesis, on by default: under strong variation window
-    /// styles share their sizes but not their transoms and shutters). No effect with
-    /// `--regroup none`.
+    /// whose depth images of the surroundings its own resembles and then dropping classes and
+    /// instances whose images disagree (the extent stage's last step, motif_detect::content; not
+    /// in the thesis, on by default: under strong variation window styles share their sizes but
+    /// not their transoms and shutters, and clutter boxes of unlike sizes form classes whose
+    /// images share nothing). No effect with `--regroup none`.
     #[arg(long)]
     pub no_content: bool,
     /// Mean PR and stress curves of EM + SC per difficulty (PNG).
@@ -849,10 +850,11 @@ pub struct DetectArgs {
     #[arg(long, value_enum, default_value_t = RepeatedSegmentsArg::Classes, value_name = "MODE")]
     pub repeated_segments: RepeatedSegmentsArg,
     /// Keep the classes of the size split and merge instead of moving each instance to the class
-    /// whose depth images of the surroundings its own resembles (the extent stage's last step,
-    /// motif_detect::content; not in the thesis, on by default: under strong variation window
-    /// styles share their sizes but not their transoms and shutters). No effect with
-    /// `--regroup none`.
+    /// whose depth images of the surroundings its own resembles and then dropping classes and
+    /// instances whose images disagree (the extent stage's last step, motif_detect::content; not
+    /// in the thesis, on by default: under strong variation window styles share their sizes but
+    /// not their transoms and shutters, and clutter boxes of unlike sizes form classes whose
+    /// images share nothing). No effect with `--regroup none`.
     #[arg(long)]
     pub no_content: bool,
     /// Keep the extent stage's boxes as grown instead of fitting each to the points it holds

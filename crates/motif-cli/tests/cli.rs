@@ -794,6 +794,9 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
     assert_eq!(rep["options"]["extent"]["content"]["enabled"], false);
     assert_eq!(rep["report"]["extent"]["content"]["described"], 0);
     assert!(read("r2.rep.json")["report"]["extent"]["content"]["described"].as_u64().unwrap() > 0);
+    for key in ["incoherent_classes", "outliers"] {
+        assert!(read("r2.rep.json")["report"]["extent"]["content"][key].is_u64(), "{key}");
+    }
     let (grown, fitted) = (read("r6.json"), read("r8.json"));
     let (gc, fc) = (grown["classes"].as_array().unwrap(), fitted["classes"].as_array().unwrap());
     assert_eq!(gc.len(), fc.len());

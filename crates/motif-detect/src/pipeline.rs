@@ -138,6 +138,7 @@ impl DetectOptions {
             ("instances.merge_overlap", self.instances.merge_overlap),
             ("extent.normal_cos", self.extent.normal_cos),
             ("extent.turned_area", self.extent.turned_area),
+            ("extent.content.surface_coverage", self.extent.content.surface_coverage),
         ] {
             if !(0.0..=1.0).contains(&v) {
                 return bad(name, format!("must be between 0 and 1, got {v}"));
@@ -170,6 +171,19 @@ impl DetectOptions {
         if !(0.0..1.0).contains(&self.extent.content.margin) {
             let v = self.extent.content.margin;
             return bad("extent.content.margin", format!("must be at least 0 and below 1, got {v}"));
+        }
+        for (name, v) in [
+            ("extent.content.class_residual", self.extent.content.class_residual),
+            ("extent.content.outlier_residual", self.extent.content.outlier_residual),
+        ] {
+            // Infinity is allowed: it switches that test off.
+            if v.is_nan() || v <= 0.0 {
+                return bad(name, format!("must be positive (infinity switches the test off), got {v}"));
+            }
+        }
+        if !(self.extent.content.class_explained.is_finite() && self.extent.content.class_explained >= 0.0) {
+            let v = self.extent.content.class_explained;
+            return bad("extent.content.class_explained", format!("must be finite and ≥ 0, got {v}"));
         }
         if self.extent.content.grid == 0 {
             return bad("extent.content.grid", "must be at least 1, got 0".into());

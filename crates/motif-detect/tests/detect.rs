@@ -201,7 +201,7 @@ fn absurd_epsilon_is_refused_unless_forced() {
 #[test]
 fn options_out_of_range_are_refused_by_name() {
     let (cloud, _) = facade(2_000);
-    let cases: [(&str, fn(&mut DetectOptions)); 11] = [
+    let cases: [(&str, fn(&mut DetectOptions)); 15] = [
         ("em.peak_share", |o| o.em.peak_share = 1.5),
         ("extent.segment_distance", |o| o.extent.segment_distance = -0.2),
         ("extent.segment_contrast", |o| o.extent.segment_contrast = f64::INFINITY),
@@ -213,6 +213,10 @@ fn options_out_of_range_are_refused_by_name() {
         ("extent.content.window", |o| o.extent.content.window = 0.0),
         ("extent.content.margin", |o| o.extent.content.margin = 1.0),
         ("extent.content.grid", |o| o.extent.content.grid = 0),
+        ("extent.content.class_residual", |o| o.extent.content.class_residual = f64::NAN),
+        ("extent.content.outlier_residual", |o| o.extent.content.outlier_residual = 0.0),
+        ("extent.content.class_explained", |o| o.extent.content.class_explained = -1.0),
+        ("extent.content.surface_coverage", |o| o.extent.content.surface_coverage = 1.5),
     ];
     for (name, break_it) in cases {
         let mut o = options();
