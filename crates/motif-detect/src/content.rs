@@ -521,15 +521,14 @@ pub fn prune(
             if descs.len() < 2 {
                 return (true, Vec::new());
             }
+            // Free-standing blocks (bins, lamp posts): the window around them is mostly empty
+            // space, the median is no wall, and the residual says nothing.
+            if median(descs.iter().map(coverage).collect()) < o.surface_coverage {
+                return (true, Vec::new());
+            }
             let all: Vec<&Descriptor> = descs.iter().collect();
             let m = centre(&all);
             let r: Vec<f64> = descs.iter().filter_map(|d| residual(d, &m)).collect();
-            // Free-standing blocks (bins, lamp posts): the window around them is mostly empty
-            // space, the median is no wall, and the residual says nothing.
-            let covered = median(descs.iter().map(coverage).collect());
-            if covered < o.surface_coverage {
-                return (true, Vec::new());
-            }
             if !r.is_empty() {
                 let r = median(r);
                 if r > o.class_residual && descs.len() as f64 * (1.0 - r) < o.class_explained {
