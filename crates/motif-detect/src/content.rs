@@ -761,6 +761,7 @@ mod tests {
         let ids = |c: &Class| c.instances.iter().map(|i| i.centre).collect::<Vec<_>>();
         assert_eq!((ids(&classes[0]), ids(&classes[1])), (vec![0, 1, 2, 3], vec![4, 5, 6, 9]));
     }
+
     /// Five boxes of unlike sizes, each 0.2 m proud of the wall between two windows of
     /// [`windows`] (x = 3, 6, ..., 15) and off that spot by a different amount: (x0, x1, y0, y1).
     fn clutter() -> Vec<[f64; 4]> {
@@ -818,7 +819,7 @@ mod tests {
             (0..8).collect::<Vec<_>>()
         );
         // With the class test off, the outlier test alone does not remove the boxes' class: the
-        // median of four unlike boxes is nearly flat wall, so each box is "explained" about as
+        // median of five unlike boxes is nearly flat wall, so each box is "explained" about as
         // badly as the others, and some of them stay.
         let mut classes = vec![class_of(&ws, &[0, 1, 2, 3], 0, 0.0), clutter_class()];
         let mut r = ContentReport::default();
