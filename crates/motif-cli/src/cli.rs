@@ -150,6 +150,8 @@ pub enum RepeatedSegmentsArg {
     /// Only the co-occurrence classes.
     None,
     /// Segments no class explains, repeated by size, become classes.
+    Sizes,
+    /// As `sizes`, then segments longer than 64ε that no group took are grouped by shape.
     #[default]
     Classes,
 }
@@ -158,6 +160,7 @@ impl From<RepeatedSegmentsArg> for motif_detect::segment_classes::RepeatedSegmen
     fn from(a: RepeatedSegmentsArg) -> Self {
         match a {
             RepeatedSegmentsArg::None => motif_detect::segment_classes::RepeatedSegments::None,
+            RepeatedSegmentsArg::Sizes => motif_detect::segment_classes::RepeatedSegments::Sizes,
             RepeatedSegmentsArg::Classes => motif_detect::segment_classes::RepeatedSegments::Classes,
         }
     }
@@ -601,7 +604,8 @@ pub struct BenchDetectArgs {
     /// thesis's output.
     #[arg(long, value_enum, default_value_t = RegroupArg::Extent, value_name = "MODE")]
     pub regroup: RegroupArg,
-    /// Classes of unexplained segments repeated by size (see `motif detect --repeated-segments`).
+    /// Classes of unexplained segments repeated by size, and long ones by shape (see `motif detect
+    /// --repeated-segments`).
     #[arg(long, value_enum, default_value_t = RepeatedSegmentsArg::Classes, value_name = "MODE")]
     pub repeated_segments: RepeatedSegmentsArg,
     /// Keep the classes of the size split and merge instead of moving each instance to the class
@@ -845,8 +849,11 @@ pub struct DetectArgs {
     /// default): segments of the scan that no class explains (off the wall and ground planes, at
     /// least one HOC cell wide in two directions, with enough features) are grouped by their
     /// sizes along their own axes, and groups of three or more that stand out of the size
-    /// distribution become classes: blocks the co-occurrence analysis cannot link, such as lamp
-    /// posts taller than 64ε and bins with few features. No effect with `--regroup none`.
+    /// distribution become classes; then those longer than 64ε that no group took are grouped
+    /// by shape (how much of each lies on the other once aligned), so lamp posts partly hidden
+    /// behind cars still form a class. These are blocks the co-occurrence analysis cannot link,
+    /// such as lamp posts taller than 64ε and bins with few features. `sizes` leaves out the
+    /// groups by shape. No effect with `--regroup none`.
     #[arg(long, value_enum, default_value_t = RepeatedSegmentsArg::Classes, value_name = "MODE")]
     pub repeated_segments: RepeatedSegmentsArg,
     /// Keep the classes of the size split and merge instead of moving each instance to the class

@@ -822,8 +822,9 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
     assert!(!o.status.success() && stderr(&o).contains("sideways"), "{}", stderr(&o));
     assert!(!dir.path().join("r5.json").exists());
     // Classes of repeated segments (a step of the extent stage) are on by default, in the
-    // options and the report; `--repeated-segments none` turns them off.
-    for (mode, want) in [(None, "classes"), (Some("none"), "none")] {
+    // options and the report; `--repeated-segments sizes` leaves out the groups by shape and
+    // `none` turns them off.
+    for (mode, want) in [(None, "classes"), (Some("sizes"), "sizes"), (Some("none"), "none")] {
         let mut args = vec![
             "detect",
             "s.ply",
@@ -845,8 +846,12 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
         assert_eq!(rep["options"]["extent"]["repeated_segments"], want);
         let found = &rep["report"]["extent"]["segment_classes"];
         assert!(found["candidates"].is_u64() && found["classes"].is_u64(), "{found}");
-        if mode.is_some() {
+        assert!(found["shape_candidates"].is_u64() && found["shape_classes"].is_u64(), "{found}");
+        if mode == Some("none") {
             assert_eq!(found["candidates"], 0, "{found}");
+        }
+        if mode.is_some() {
+            assert_eq!(found["shape_classes"], 0, "{found}");
         }
     }
     let o = motif(&["detect", "s.ply", "-o", "r7.json", "--repeated-segments", "some"], dir.path());

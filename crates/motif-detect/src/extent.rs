@@ -51,8 +51,10 @@
 //!    [`ExtentOptions::spread_cap`], half the split distance: a wider class is a mix, not a block.
 //! 6. **Repeated segments.** Segments that no class's instance explains, grouped by their sizes
 //!    along their own axes, become classes when three or more stand out of the size
-//!    distribution ([`crate::segment_classes`]): blocks the co-occurrence stages cannot link
-//!    (street lamps taller than 64ε, bins with few features and copies).
+//!    distribution; those longer than 64ε that no size group took are then grouped by shape, by
+//!    how much of each lies on the other once aligned ([`crate::segment_classes`]): blocks the
+//!    co-occurrence stages cannot link (street lamps taller than 64ε, bins with few features and
+//!    copies).
 //! 7. **Fit.** Each instance's box shrinks to the resampled points it holds (the wall behind a
 //!    window, the window itself), ignoring [`ExtentOptions::fit_trim`] of them at each end of
 //!    each axis (stray outliers), padded by half of ε and never beyond the box
@@ -303,6 +305,17 @@ pub struct ExtentOptions {
     /// class. Three, not two: two objects of one size happen by chance among tens of segments.
     /// Default 3.
     pub segment_min_instances: usize,
+    /// [`crate::segment_classes`]: candidates longer than this, in ε, that no size group took
+    /// are grouped by shape (64: the pair radius of Match, thesis 5.4, so co-occurrence cannot
+    /// link such a block's ends). Infinity turns shape groups off. Default 64.
+    pub shape_length: f64,
+    /// [`crate::segment_classes`]: cut of the shape clustering, on the mean share of each
+    /// segment's points that the other covers once aligned (average linkage). Default 0.5.
+    pub shape_similarity: f64,
+    /// [`crate::segment_classes`]: a point is covered when an aligned segment has a point within
+    /// this distance, in ε (2: the feature's non-maximum-suppression radius, thesis 5.4).
+    /// Default 2.
+    pub shape_tolerance: f64,
     /// Step 7: whether each instance's box is fitted to the resampled points it holds. Default
     /// true.
     pub fit_boxes: bool,
@@ -336,6 +349,9 @@ impl Default for ExtentOptions {
             segment_distance: 0.2,
             segment_min_instances: 3,
             segment_contrast: 0.75,
+            shape_length: 64.0,
+            shape_similarity: 0.5,
+            shape_tolerance: 2.0,
             fit_boxes: true,
             fit_trim: 0.002,
             content: ContentOptions::default(),
@@ -776,7 +792,16 @@ pub(crate) fn chebyshev<const N: usize>(a: &[f64; N], b: &[f64; N]) -> f64 {
 /// (lowest indices), so the result does not depend on anything but the points' order. Naive
 /// O(n³): the callers cluster tens of instances or segments.
 pub(crate) fn average_linkage<const N: usize>(points: &[[f64; N]], cut: f64) -> Vec<Vec<usize>> {
-    let mut groups: Vec<Vec<usize>> = (0..points.len()).map(|i| vec![i]).collect();
+    average_linkage_by(points.len(), |x, y| chebyshev(&points[x], &points[y]), cut)
+}
+
+/// [`average_linkage`] of `n` items under any symmetric `distance`.
+pub(crate) fn average_linkage_by(
+    n: usize,
+    distance: impl Fn(usize, usize) -> f64,
+    cut: f64,
+) -> Vec<Vec<usize>> {
+    let mut groups: Vec<Vec<usize>> = (0..n).map(|i| vec![i]).collect();
     loop {
         let mut best: Option<(f64, usize, usize)> = None;
         for a in 0..groups.len() {
@@ -784,7 +809,7 @@ pub(crate) fn average_linkage<const N: usize>(points: &[[f64; N]], cut: f64) -> 
                 let mut sum = 0.0;
                 for &x in &groups[a] {
                     for &y in &groups[b] {
-                        sum += chebyshev(&points[x], &points[y]);
+                        sum += distance(x, y);
                     }
                 }
                 let d = sum / (groups[a].len() * groups[b].len()) as f64;

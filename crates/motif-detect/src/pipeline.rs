@@ -124,6 +124,7 @@ impl DetectOptions {
             ("extent.spread_floor", self.extent.spread_floor),
             ("extent.spread_cap", self.extent.spread_cap),
             ("extent.segment_distance", self.extent.segment_distance),
+            ("extent.shape_tolerance", self.extent.shape_tolerance),
             ("extent.content.window", self.extent.content.window),
         ] {
             if !(v.is_finite() && v > 0.0) {
@@ -138,6 +139,7 @@ impl DetectOptions {
             ("instances.merge_overlap", self.instances.merge_overlap),
             ("extent.normal_cos", self.extent.normal_cos),
             ("extent.turned_area", self.extent.turned_area),
+            ("extent.shape_similarity", self.extent.shape_similarity),
             ("extent.content.surface_coverage", self.extent.content.surface_coverage),
         ] {
             if !(0.0..=1.0).contains(&v) {
@@ -159,6 +161,13 @@ impl DetectOptions {
         if !(self.extent.segment_contrast.is_finite() && self.extent.segment_contrast >= 0.0) {
             let v = self.extent.segment_contrast;
             return bad("extent.segment_contrast", format!("must be finite and ≥ 0, got {v}"));
+        }
+        if self.extent.shape_length.is_nan() || self.extent.shape_length <= 0.0 {
+            let v = self.extent.shape_length;
+            return bad(
+                "extent.shape_length",
+                format!("must be positive (infinity: no shape groups), got {v}"),
+            );
         }
         if self.extent.spread_cap < self.extent.spread_floor {
             let (c, f) = (self.extent.spread_cap, self.extent.spread_floor);

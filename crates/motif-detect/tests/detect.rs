@@ -201,7 +201,7 @@ fn absurd_epsilon_is_refused_unless_forced() {
 #[test]
 fn options_out_of_range_are_refused_by_name() {
     let (cloud, _) = facade(2_000);
-    let cases: [(&str, fn(&mut DetectOptions)); 15] = [
+    let cases: [(&str, fn(&mut DetectOptions)); 18] = [
         ("em.peak_share", |o| o.em.peak_share = 1.5),
         ("extent.segment_distance", |o| o.extent.segment_distance = -0.2),
         ("extent.segment_contrast", |o| o.extent.segment_contrast = f64::INFINITY),
@@ -217,6 +217,9 @@ fn options_out_of_range_are_refused_by_name() {
         ("extent.content.outlier_residual", |o| o.extent.content.outlier_residual = 0.0),
         ("extent.content.class_explained", |o| o.extent.content.class_explained = -1.0),
         ("extent.content.surface_coverage", |o| o.extent.content.surface_coverage = 1.5),
+        ("extent.shape_length", |o| o.extent.shape_length = 0.0),
+        ("extent.shape_similarity", |o| o.extent.shape_similarity = -0.1),
+        ("extent.shape_tolerance", |o| o.extent.shape_tolerance = f64::INFINITY),
     ];
     for (name, break_it) in cases {
         let mut o = options();

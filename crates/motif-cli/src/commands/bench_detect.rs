@@ -198,7 +198,11 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             a.min_support,
             a.peak_share,
             if a.regroup == RegroupArg::Extent { "by extent" } else { "off" },
-            if a.repeated_segments == RepeatedSegmentsArg::Classes { "as classes" } else { "off" },
+            match a.repeated_segments {
+                RepeatedSegmentsArg::Classes => "by size and shape",
+                RepeatedSegmentsArg::Sizes => "by size",
+                RepeatedSegmentsArg::None => "off",
+            },
             if a.no_content { "off" } else { "on" },
             eval.tau
         );
@@ -248,7 +252,11 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         &serde_json::json!({ "rows": rows, "em_lead": leads, "stages": stages, "epsilon": a.epsilon,
             "min_support": a.min_support, "peak_share": a.peak_share, "points": a.points,
             "regroup": a.regroup == RegroupArg::Extent,
-            "repeated_segments": a.repeated_segments == RepeatedSegmentsArg::Classes,
+            "repeated_segments": match a.repeated_segments {
+                RepeatedSegmentsArg::Classes => "classes",
+                RepeatedSegmentsArg::Sizes => "sizes",
+                RepeatedSegmentsArg::None => "none",
+            },
             "content": !a.no_content }),
     )
 }
