@@ -127,6 +127,18 @@
 //! fell below 0.6–0.8 of the class's) was tried in the prototype and dropped: on the sixteen
 //! scenes it gained at most 0.008 on hard facades and cost 0.05–0.07 on the others, splitting
 //! real classes whose residuals were already low.
+//!
+//! A vote by nearest neighbours after the Lloyd rounds was implemented, measured and dropped
+//! (2026-11-28): each instance whose image is mostly covered joined the class most of its k
+//! nearest instances (by the distance above, same thin axis) and itself belonged to, when that
+//! class had more votes than its own, never into a class holding its block. A Python prototype
+//! on six hard facades had raised F from 0.711 to 0.740 (k = 3); without the coverage test, hard
+//! street 1 lost its lamp posts and its `window_b` class (F 0.632 → 0.494). With it, on the
+//! benchmark (`motif bench detect --scenes 12 --no-icp --seed 1|13`, k = 4, paired over the 24
+//! scenes per level): facade −0.003 ±0.004 / +0.005 ±0.005 / +0.010 ±0.008 (easy / medium /
+//! hard), street −0.003 ±0.005 / +0.004 ±0.003 / +0.012 ±0.009. The hard levels gained about one
+//! standard error, the easy ones lost a little, and SC gained more than EM + SC on street medium
+//! (lead +0.095 → +0.090).
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
