@@ -551,27 +551,69 @@ mod tests {
     use crate::extent::segment;
     use motif_core::geometry::IDENTITY4;
 
+    /// The ground, 30 × 12 m, sampled every `h` (a support plane), with its normals.
+    fn ground(h: f64) -> Vec<(Point3, Point3)> {
+        let (nx, nz) = ((30.0 / h).round() as usize, (12.0 / h).round() as usize);
+        (0..=nx)
+            .flat_map(|i| (0..=nz).map(move |j| ([i as f64 * h, 0.0, j as f64 * h], [0.0, 1.0, 0.0])))
+            .collect()
+    }
+
+    /// The points and normals of `pts`, the preprocessed scan (ε = `h`) and a feature every 7th
+    /// point from index `ground` on (off the ground).
+    fn prepared(
+        pts: Vec<(Point3, Point3)>,
+        ground: usize,
+        h: f64,
+    ) -> (Vec<Point3>, Vec<Point3>, Preprocessed, Vec<Feature>) {
+        let (points, normals): (Vec<Point3>, Vec<Point3>) = pts.into_iter().unzip();
+        let pre = Preprocessed::for_tests(points.clone(), normals.clone(), h, 33.0);
+        let features = (ground..points.len())
+            .step_by(7)
+            .map(|i| Feature { point: i, position: points[i], x: normals[i], y: [1.0, 0.0, 0.0], kappa: 1.0 })
+            .collect();
+        (points, normals, pre, features)
+    }
+
     /// Points every `h` on the five upper faces of the box `size` (x, y, z) standing on y = 0
     /// at (x, z), turned about y by `deg`, with outward normals.
     fn block(size: Point3, at: [f64; 2], deg: f64, h: f64, out: &mut Vec<(Point3, Point3)>) {
+        let (lo, hi) = ([-0.5 * size[0], 0.0, -0.5 * size[2]], [0.5 * size[0], size[1], 0.5 * size[2]]);
+        box_faces(lo, hi, at, deg, h, false, out);
+    }
+
+    /// Points about every `h` on the faces of the box `[lo, hi]` (local coordinates, y up), the
+    /// bottom face only when `bottom`, turned about y by `deg` and moved to (x, z) = `at`, with
+    /// outward normals.
+    fn box_faces(
+        lo: Point3,
+        hi: Point3,
+        at: [f64; 2],
+        deg: f64,
+        h: f64,
+        bottom: bool,
+        out: &mut Vec<(Point3, Point3)>,
+    ) {
         let (c, s) = (deg.to_radians().cos(), deg.to_radians().sin());
         let turn = |p: Point3| [c * p[0] + s * p[2] + at[0], p[1], -s * p[0] + c * p[2] + at[1]];
-        let half = [0.5 * size[0], size[1], 0.5 * size[2]];
-        // (normal axis, sign) of the faces: ±x, +y, ±z.
-        for (axis, sign) in [(0, -1.0), (0, 1.0), (1, 1.0), (2, -1.0), (2, 1.0)] {
-            let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
-            let lo = |k: usize| if k == 1 { 0.0 } else { -half[k] };
-            let (nu, nv) =
-                (((half[u] - lo(u)) / h).round() as usize, ((half[v] - lo(v)) / h).round() as usize);
-            for i in 0..=nu {
-                for j in 0..=nv {
-                    let mut p = [0.0; 3];
-                    p[axis] = if sign > 0.0 { half[axis] } else { lo(axis) };
-                    p[u] = lo(u) + (half[u] - lo(u)) * i as f64 / nu as f64;
-                    p[v] = lo(v) + (half[v] - lo(v)) * j as f64 / nv as f64;
-                    let mut n = [0.0; 3];
-                    n[axis] = sign;
-                    out.push((turn(p), [c * n[0] + s * n[2], n[1], -s * n[0] + c * n[2]]));
+        for axis in 0..3 {
+            for (side, sign) in [(lo[axis], -1.0), (hi[axis], 1.0)] {
+                if axis == 1 && sign < 0.0 && !bottom {
+                    continue;
+                }
+                let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+                let (nu, nv) =
+                    (((hi[u] - lo[u]) / h).round() as usize, ((hi[v] - lo[v]) / h).round() as usize);
+                for i in 0..=nu {
+                    for j in 0..=nv {
+                        let mut p = [0.0; 3];
+                        p[axis] = side;
+                        p[u] = lo[u] + (hi[u] - lo[u]) * i as f64 / nu as f64;
+                        p[v] = lo[v] + (hi[v] - lo[v]) * j as f64 / nv as f64;
+                        let mut n = [0.0; 3];
+                        n[axis] = sign;
+                        out.push((turn(p), [c * n[0] + s * n[2], n[1], -s * n[0] + c * n[2]]));
+                    }
                 }
             }
         }
@@ -580,13 +622,7 @@ mod tests {
     #[test]
     fn repeated_free_standing_blocks_become_a_class_and_a_continuum_of_sizes_does_not() {
         let h = 0.05;
-        let mut pts = Vec::new();
-        // The ground, 30 × 12 m: support.
-        for i in 0..=600 {
-            for j in 0..=240 {
-                pts.push(([i as f64 * h, 0.0, j as f64 * h], [0.0, 1.0, 0.0]));
-            }
-        }
+        let mut pts = ground(h);
         let ground = pts.len();
         // Three posts 0.6 × 2.0 × 0.45 at three headings, found by no class.
         let posts = [(2.0, 0.0), (5.0, 35.0), (8.0, -70.0)];
@@ -605,14 +641,7 @@ mod tests {
         }
         // A block that a co-occurrence class already explains.
         block([0.6, 2.0, 0.45], [26.0, 2.0], 0.0, h, &mut pts);
-        let (points, normals): (Vec<Point3>, Vec<Point3>) = pts.into_iter().unzip();
-        let n = points.len();
-        let pre = Preprocessed::for_tests(points.clone(), normals.clone(), h, 33.0);
-        // A feature every 7th point off the ground.
-        let features: Vec<Feature> = (ground..n)
-            .step_by(7)
-            .map(|i| Feature { point: i, position: points[i], x: normals[i], y: [1.0, 0.0, 0.0], kappa: 1.0 })
-            .collect();
+        let (points, normals, pre, features) = prepared(pts, ground, h);
         let o = ExtentOptions::default();
         let seg = segment(&points, &normals, &pre.kappa, h, &o);
         assert_eq!(seg.support_points, ground);
@@ -666,48 +695,19 @@ mod tests {
         assert!(segment_classes(&[], &seg, &members, &pre, &features, &io, &off, 0).0.is_empty());
     }
 
-    /// Points every `h` on the six faces of the box `[lo, hi]` (local coordinates, y up), turned
-    /// about y by `deg` and moved to (x, z) = `at`, with outward normals.
-    fn raised_box(lo: Point3, hi: Point3, at: [f64; 2], deg: f64, h: f64, out: &mut Vec<(Point3, Point3)>) {
-        let (c, s) = (deg.to_radians().cos(), deg.to_radians().sin());
-        let turn = |p: Point3| [c * p[0] + s * p[2] + at[0], p[1], -s * p[0] + c * p[2] + at[1]];
-        for axis in 0..3 {
-            for (side, sign) in [(lo[axis], -1.0), (hi[axis], 1.0)] {
-                let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
-                let (nu, nv) = (((hi[u] - lo[u]) / h).ceil() as usize, ((hi[v] - lo[v]) / h).ceil() as usize);
-                for i in 0..=nu {
-                    for j in 0..=nv {
-                        let mut p = [0.0; 3];
-                        p[axis] = side;
-                        p[u] = lo[u] + (hi[u] - lo[u]) * i as f64 / nu as f64;
-                        p[v] = lo[v] + (hi[v] - lo[v]) * j as f64 / nv as f64;
-                        let mut n = [0.0; 3];
-                        n[axis] = sign;
-                        out.push((turn(p), [c * n[0] + s * n[2], n[1], -s * n[0] + c * n[2]]));
-                    }
-                }
-            }
-        }
-    }
-
     /// A street lamp 5 m high at (x, z) = `at`, turned by `deg`: a 0.2 m square pole, an arm
     /// 1.2 m long along local +x at the top and a head at its end; the pole is seen from `cut`
     /// metres up only (the rest hidden behind a parked car).
     fn lamp(at: [f64; 2], deg: f64, cut: f64, h: f64, out: &mut Vec<(Point3, Point3)>) {
-        raised_box([-0.1, cut, -0.1], [0.1, 5.0, 0.1], at, deg, h, out);
-        raised_box([0.1, 4.85, -0.05], [1.3, 4.95, 0.05], at, deg, h, out);
-        raised_box([1.1, 4.6, -0.15], [1.5, 4.85, 0.15], at, deg, h, out);
+        box_faces([-0.1, cut, -0.1], [0.1, 5.0, 0.1], at, deg, h, true, out);
+        box_faces([0.1, 4.85, -0.05], [1.3, 4.95, 0.05], at, deg, h, true, out);
+        box_faces([1.1, 4.6, -0.15], [1.5, 4.85, 0.15], at, deg, h, true, out);
     }
 
     #[test]
     fn long_blocks_of_unlike_lengths_are_grouped_by_shape() {
         let h = 0.05;
-        let mut pts = Vec::new();
-        for i in 0..=600 {
-            for j in 0..=240 {
-                pts.push(([i as f64 * h, 0.0, j as f64 * h], [0.0, 1.0, 0.0]));
-            }
-        }
+        let mut pts = ground(h);
         let ground = pts.len();
         // Four lamps at four headings, hidden up to 0–1.75 m: 3.4–5.1 m long along their
         // axis, too unlike in size for a size group (the two longest and the two shortest pair
@@ -723,15 +723,9 @@ mod tests {
         }
         // Two benches 4 m long: long too, but unlike the lamps, and too few to repeat.
         for z in [7.0, 10.0] {
-            raised_box([-2.0, 0.0, -0.25], [2.0, 0.5, 0.25], [22.0, z], 0.0, h, &mut pts);
+            box_faces([-2.0, 0.0, -0.25], [2.0, 0.5, 0.25], [22.0, z], 0.0, h, true, &mut pts);
         }
-        let (points, normals): (Vec<Point3>, Vec<Point3>) = pts.into_iter().unzip();
-        let n = points.len();
-        let pre = Preprocessed::for_tests(points.clone(), normals.clone(), h, 33.0);
-        let features: Vec<Feature> = (ground..n)
-            .step_by(7)
-            .map(|i| Feature { point: i, position: points[i], x: normals[i], y: [1.0, 0.0, 0.0], kappa: 1.0 })
-            .collect();
+        let (points, normals, pre, features) = prepared(pts, ground, h);
         let o = ExtentOptions::default();
         let seg = segment(&points, &normals, &pre.kappa, h, &o);
         assert_eq!(seg.boxes.len(), 6, "one segment per lamp and bench");
@@ -770,7 +764,7 @@ mod tests {
         lamp([0.0, 0.0], 0.0, 0.0, h, &mut a);
         lamp([4.0, -3.0], 137.0, 0.0, h, &mut b);
         lamp([1.0, 1.0], 20.0, 1.2, h, &mut c);
-        raised_box([-2.0, 0.0, -0.25], [2.0, 0.5, 0.25], [0.0, 0.0], 0.0, h, &mut d);
+        box_faces([-2.0, 0.0, -0.25], [2.0, 0.5, 0.25], [0.0, 0.0], 0.0, h, true, &mut d);
         let (sa, sb, sc, sd) = (shape(&a), shape(&b), shape(&c), shape(&d));
         let mut bufs = (Vec::new(), (Vec::new(), Vec::new()));
         let mut cov = |x: &Shape, y: &Shape| coverage(x, y, 2.0 * h, &mut bufs.0, &mut bufs.1);
