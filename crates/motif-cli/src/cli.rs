@@ -616,6 +616,11 @@ pub struct BenchDetectArgs {
     /// images share nothing). No effect with `--regroup none`.
     #[arg(long)]
     pub no_content: bool,
+    /// Also print, per level and annotated class, how many instances EM + SC located (some
+    /// detected box matches) and how many the recall credited, summed over the scenes (the JSON
+    /// report always has them, for every method).
+    #[arg(long)]
+    pub per_class: bool,
     /// Mean PR and stress curves of EM + SC per difficulty (PNG).
     #[arg(long, value_name = "PNG")]
     pub plot: Option<PathBuf>,
@@ -889,6 +894,11 @@ pub struct EvalArgs {
     /// PR curve and stress curve (PNG).
     #[arg(long, value_name = "PNG")]
     pub plot: Option<PathBuf>,
+    /// Also print, per annotated class (summed by name over the scenes), how many instances some
+    /// detected box locates and how many the recall credits; for one scene, also per detected
+    /// class how many instances the precision credits. The JSON report always has both.
+    #[arg(long)]
+    pub per_class: bool,
     #[command(flatten)]
     pub json: JsonArg,
 }

@@ -497,6 +497,26 @@ fn eval_scores_a_detection_against_ground_truth() {
     assert!((r["recall"].as_f64().unwrap() - 0.5).abs() < 1e-12, "{r}");
     assert!((r["f"].as_f64().unwrap() - 0.5).abs() < 1e-12, "{r}");
     assert!(d.path().join("pr.png").exists());
+    // Per class: the window class has 2 instances, 1 located and credited.
+    let w = &r["annotated"][0];
+    assert_eq!(
+        (w["name"].as_str(), w["instances"].as_u64(), w["found"].as_u64(), w["recalled"].as_u64()),
+        (Some("window"), Some(2), Some(1), Some(1)),
+        "{r}"
+    );
+    let o = motif(&["eval", "det.json", "gt.json", "--per-class"], d.path());
+    assert!(o.status.success());
+    let out = String::from_utf8_lossy(&o.stdout);
+    let row =
+        out.lines().find(|l| l.starts_with("window")).unwrap_or_else(|| panic!("no window row in\n{out}"));
+    let cols: Vec<&str> = row.split_whitespace().collect();
+    // window: 1 scene, 2 instances, 1 found, 1 recalled, 1 missed, 0 elsewhere.
+    assert_eq!(cols, ["window", "1", "2", "1", "1", "1", "0"], "{out}");
+    // Detected classes: class_1 (the spurious box) is credited nothing.
+    assert!(
+        out.lines().any(|l| l.split_whitespace().collect::<Vec<_>>() == ["class_1", "1", "0", "-"]),
+        "{out}"
+    );
     std::fs::write(
         d.path().join("bad.json"),
         r#"{"scene": "s", "classes": [{"instances": [{"bbox_min": [1, 0, 0], "bbox_max": [0, 1, 1]}]}]}"#,

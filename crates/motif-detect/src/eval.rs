@@ -16,6 +16,11 @@
 //!   missed and nothing is spurious, so P = R = F = 1. Otherwise a ratio whose denominator is 0
 //!   is 0: an empty detection scores P = R = F = 0 against a non-empty ground truth, and a
 //!   non-empty detection scores P = R = F = 0 against an empty ground truth.
+//!
+//! Beyond the thesis, each report breaks the two numerators down by class
+//! ([`AnnotatedClassReport`], [`DetectedClassReport`]): which annotated instances no detected
+//! box locates, which are located but credited to no class, and how much of each detected class
+//! the precision credits. The per-class terms add up to exactly the P and R above.
 
 use serde::{Deserialize, Serialize};
 
@@ -111,6 +116,64 @@ pub struct EvalReport {
     pub ground_truth_classes: usize,
     /// Σᵢ |𝐆ⁱ|, the number of annotated instances.
     pub ground_truth_instances: usize,
+    /// Per annotated class at τ: how many of its instances some detected box locates and how
+    /// many the recall credits (see [`AnnotatedClassReport`]), in the ground truth's order.
+    #[serde(default)]
+    pub annotated: Vec<AnnotatedClassReport>,
+    /// Per detected class at τ: how many of its instances the precision credits and against
+    /// which annotated class (see [`DetectedClassReport`]), in the detection's order.
+    #[serde(default)]
+    pub detected: Vec<DetectedClassReport>,
+}
+
+/// One annotated class's part in the recall (not in the thesis; a diagnosis of where recall is
+/// lost). `instances − found` instances were missed by every detected box; `found − recalled`
+/// were located but counted against a detected class other than the one credited for this
+/// annotated class (a block split over several classes, or mixed into classes of other blocks).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct AnnotatedClassReport {
+    /// The class's name, or `class_i` (its index) when it has none.
+    pub name: String,
+    /// |𝐆ⁱ|.
+    pub instances: usize,
+    /// Instances whose box matches some detected box of any class at τ.
+    pub found: usize,
+    /// maxⱼ score(𝐃ʲ, 𝐆ⁱ) (eq. 5.4), this class's term of the recall's numerator.
+    pub recalled: usize,
+    /// The detected class j attaining that maximum (the first on ties); `None` when it is 0.
+    pub best_detected: Option<usize>,
+}
+
+/// One detected class's part in the precision (not in the thesis; a diagnosis of where
+/// precision is lost). `instances − credited` instances are spurious or belong to annotated
+/// classes other than the one the class is credited for (a class mixing blocks).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct DetectedClassReport {
+    /// The class's name, or `class_j` (its index) when it has none.
+    pub name: String,
+    /// |𝐃ʲ|.
+    pub instances: usize,
+    /// maxᵢ score(𝐃ʲ, 𝐆ⁱ) (eq. 5.4), this class's term of the precision's numerator.
+    pub credited: usize,
+    /// The annotated class i attaining that maximum (the first on ties); `None` when it is 0.
+    pub best_annotated: Option<usize>,
+}
+
+/// An annotated class's figures summed over the scenes that annotate a class of that name (see
+/// [`AnnotatedClassReport`]).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct AnnotatedClassTotals {
+    /// The class name (`class_i` for unnamed classes, so unnamed classes of different scenes
+    /// with the same index are summed together).
+    pub name: String,
+    /// Scenes that annotate the class.
+    pub scenes: usize,
+    /// Σ |𝐆ⁱ|.
+    pub instances: usize,
+    /// Σ found.
+    pub found: usize,
+    /// Σ recalled.
+    pub recalled: usize,
 }
 
 /// The figures of a set of scenes: per-scene reports and their means ("the final PR curve is the
@@ -133,6 +196,9 @@ pub struct EvalSummary {
     pub mean_pr_curve: Vec<(usize, f64, f64)>,
     /// Mean stress curve: `(τ, mean F)`.
     pub mean_stress: Vec<(f64, f64)>,
+    /// Per annotated class name, summed over the scenes, in order of first appearance.
+    #[serde(default)]
+    pub annotated: Vec<AnnotatedClassTotals>,
 }
 
 /// The overlap ratio vol(A ∩ B) / max(vol(A), vol(B)) of two boxes given by their corners, or
@@ -213,6 +279,18 @@ impl Pairwise {
         count_matching(&self.d_best[j][i], tau).min(count_matching(&self.g_best[j][i], tau))
     }
 
+    /// The first argmax of `score`, or `None` when the best score is 0 (or there is no index).
+    fn best(n: usize, score: impl Fn(usize) -> usize) -> (usize, Option<usize>) {
+        let mut best = (0, None);
+        for k in 0..n {
+            let s = score(k);
+            if s > best.0 {
+                best = (s, Some(k));
+            }
+        }
+        best
+    }
+
     /// (precision, recall) at τ with only the detected classes `kept` (eq. 5.5).
     fn precision_recall(&self, kept: &[bool], tau: f64) -> (f64, f64) {
         let n_d: usize = self.d_sizes.iter().zip(kept).filter(|(_, k)| **k).map(|(n, _)| n).sum();
@@ -257,6 +335,40 @@ pub fn evaluate(
         pr_curve.push((n_classes - removed - 1, p, r));
     }
 
+    let tau = options.tau;
+    let annotated = ground_truth
+        .classes
+        .iter()
+        .enumerate()
+        .map(|(i, g)| {
+            let (recalled, best_detected) = Pairwise::best(n_classes, |j| pw.score(j, i, tau));
+            let found = (0..g.instances.len())
+                .filter(|&k| (0..n_classes).any(|j| pw.g_best[j][i][k].is_some_and(|r| r >= tau)))
+                .count();
+            AnnotatedClassReport {
+                name: g.name.clone().unwrap_or_else(|| format!("class_{i}")),
+                instances: g.instances.len(),
+                found,
+                recalled,
+                best_detected,
+            }
+        })
+        .collect();
+    let detected = detection
+        .classes
+        .iter()
+        .enumerate()
+        .map(|(j, d)| {
+            let (credited, best_annotated) = Pairwise::best(pw.g_sizes.len(), |i| pw.score(j, i, tau));
+            DetectedClassReport {
+                name: d.name.clone().unwrap_or_else(|| format!("class_{j}")),
+                instances: d.instances.len(),
+                credited,
+                best_annotated,
+            }
+        })
+        .collect();
+
     let all = vec![true; n_classes];
     let stress = options
         .stress_taus()
@@ -279,6 +391,8 @@ pub fn evaluate(
         detected_instances: detection.instance_count(),
         ground_truth_classes: ground_truth.classes.len(),
         ground_truth_instances: ground_truth.instance_count(),
+        annotated,
+        detected,
     })
 }
 
@@ -305,8 +419,31 @@ pub fn evaluate_many<'a>(
     let taus = options.stress_taus();
     let mean_stress = taus.iter().enumerate().map(|(k, &tau)| (tau, mean(&|s| s.stress[k].1))).collect();
 
+    let mut annotated: Vec<AnnotatedClassTotals> = Vec::new();
+    for c in scenes.iter().flat_map(|s| &s.annotated) {
+        let pos = match annotated.iter().position(|t| t.name == c.name) {
+            Some(pos) => pos,
+            None => {
+                annotated.push(AnnotatedClassTotals {
+                    name: c.name.clone(),
+                    scenes: 0,
+                    instances: 0,
+                    found: 0,
+                    recalled: 0,
+                });
+                annotated.len() - 1
+            }
+        };
+        let t = &mut annotated[pos];
+        t.scenes += 1;
+        t.instances += c.instances;
+        t.found += c.found;
+        t.recalled += c.recalled;
+    }
+
     Ok(EvalSummary {
         options: options.clone(),
+        annotated,
         precision: mean(&|s| s.precision),
         recall: mean(&|s| s.recall),
         f: mean(&|s| s.f),

@@ -46,7 +46,10 @@ pub mod segment_classes;
 
 pub use detection::{DetectedClass, DetectedInstance, DetectionResult};
 pub use error::{DetectError, Result};
-pub use eval::{EvalOptions, EvalReport, EvalSummary, evaluate, evaluate_many};
+pub use eval::{
+    AnnotatedClassReport, AnnotatedClassTotals, DetectedClassReport, EvalOptions, EvalReport, EvalSummary,
+    evaluate, evaluate_many,
+};
 pub use pipeline::{DetectOptions, DetectReport, Detection, Method, detect, detect_mesh};
 pub use plot::{EvalCurves, plot_pr_and_stress};
 pub use rigid_icp::{ClassCompetition, RigidIcpOptions, RigidIcpReport, rigid_icp};

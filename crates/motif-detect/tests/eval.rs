@@ -72,6 +72,49 @@ fn split_classes() {
 }
 
 #[test]
+fn per_class_breakdown_names_missed_and_mixed_instances() {
+    let mut gt = scene(vec![class(&[0.0, 10.0, 20.0]), class(&[100.0, 110.0, 120.0])]);
+    gt.classes[0].name = Some("window".into());
+    // Class 0 mixes two windows with one door; class 1 holds the other two doors; the window at
+    // x = 20 is missed.
+    let det = scene(vec![class(&[0.0, 10.0, 100.0]), class(&[110.0, 120.0])]);
+    let rep = evaluate(&det, &gt, &EvalOptions::default()).expect("valid input");
+    // Windows: 2 of 3 located, score(D0, window) = min(2, 2) = 2, from class 0.
+    let w = &rep.annotated[0];
+    assert_eq!(
+        (w.name.as_str(), w.instances, w.found, w.recalled, w.best_detected),
+        ("window", 3, 2, 2, Some(0))
+    );
+    // Doors (unnamed, index 1): all 3 located; score(D0, door) = 1, score(D1, door) = 2.
+    let d = &rep.annotated[1];
+    assert_eq!(
+        (d.name.as_str(), d.instances, d.found, d.recalled, d.best_detected),
+        ("class_1", 3, 3, 2, Some(1))
+    );
+    // Class 0 is credited 2 (the windows), class 1 is credited 2 (the doors).
+    let c: Vec<_> = rep.detected.iter().map(|c| (c.instances, c.credited, c.best_annotated)).collect();
+    assert_eq!(c, vec![(3, 2, Some(0)), (2, 2, Some(1))]);
+    // The breakdown adds up to the protocol's figures: P = 4 / 5, R = 4 / 6.
+    let credited: usize = rep.detected.iter().map(|c| c.credited).sum();
+    let recalled: usize = rep.annotated.iter().map(|c| c.recalled).sum();
+    assert!(close(rep.precision, credited as f64 / 5.0) && close(rep.precision, 0.8));
+    assert!(close(rep.recall, recalled as f64 / 6.0) && close(rep.recall, 4.0 / 6.0));
+    // A detection with nothing in common credits nothing and locates nothing.
+    let far = scene(vec![class(&[500.0, 510.0])]);
+    let rep = evaluate(&far, &gt, &EvalOptions::default()).expect("valid input");
+    assert!(rep.annotated.iter().all(|c| c.found == 0 && c.recalled == 0 && c.best_detected.is_none()));
+    assert_eq!(rep.detected[0].best_annotated, None);
+    // Over two scenes, classes are summed by name.
+    let summary = evaluate_many([(&det, &gt), (&gt.clone(), &gt)], &EvalOptions::default()).expect("valid");
+    let t: Vec<_> = summary
+        .annotated
+        .iter()
+        .map(|t| (t.name.as_str(), t.scenes, t.instances, t.found, t.recalled))
+        .collect();
+    assert_eq!(t, vec![("window", 2, 6, 5, 5), ("class_1", 2, 6, 6, 5)]);
+}
+
+#[test]
 fn multiple_intersections_do_not_over_count() {
     // One big detected box covering two GT cubes: |D ∩ G| = 1 (the big box) but |G ∩ D| = 2; the
     // min keeps 1. The big box [0, 2] × [0, 1] × [0, 1] has volume 2, each cube overlaps with 1:

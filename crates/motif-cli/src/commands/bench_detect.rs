@@ -15,7 +15,9 @@ use motif_detect::pipeline::Method;
 use motif_detect::preprocess::Epsilon;
 use motif_detect::rigid_icp::{RigidIcpOptions, rigid_icp};
 use motif_detect::scenes::{Difficulty, SceneKind, SceneOptions, generate_scene};
-use motif_detect::{DetectOptions, DetectionResult, EvalOptions, evaluate_many, plot_pr_and_stress};
+use motif_detect::{
+    AnnotatedClassTotals, DetectOptions, DetectionResult, EvalOptions, evaluate_many, plot_pr_and_stress,
+};
 use serde::Serialize;
 
 use crate::cli::{BenchDetectArgs, GlobalArgs, RegroupArg, RepeatedSegmentsArg};
@@ -38,6 +40,8 @@ struct Row {
     /// c–d): how well the boxes fit, beyond matching at all.
     stress: Vec<(f64, f64)>,
     median_seconds: f64,
+    /// Per annotated class, summed over the scenes: instances, located, credited by the recall.
+    annotated: Vec<AnnotatedClassTotals>,
 }
 
 /// EM + SC's F minus SC's on the same scenes.
@@ -169,6 +173,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 scene_f,
                 stress: summary.mean_stress.clone(),
                 median_seconds: median(results[m].iter().map(|x| x.2).collect()),
+                annotated: summary.annotated.clone(),
             });
             if m == 0 {
                 curves.push((dname, summary));
@@ -242,6 +247,27 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 "{:<8} {:>10.2} {:>11.2} {:>10.2} {:>6.2} {:>9.2} {:>6.2}",
                 d, s.preprocess, s.descriptors, s.dictionary, s.em, s.instances, s.total
             );
+        }
+        if a.per_class {
+            println!("EM + SC per annotated class (summed over the scenes):");
+            println!(
+                "{:<8} {:<16} {:>9} {:>5} {:>8} {:>6} {:>9}",
+                "level", "class", "instances", "found", "recalled", "missed", "elsewhere"
+            );
+            for r in rows.iter().filter(|r| r.method == "EM + SC") {
+                for t in &r.annotated {
+                    println!(
+                        "{:<8} {:<16} {:>9} {:>5} {:>8} {:>6} {:>9}",
+                        r.difficulty,
+                        t.name,
+                        t.instances,
+                        t.found,
+                        t.recalled,
+                        t.instances - t.found,
+                        t.found.saturating_sub(t.recalled)
+                    );
+                }
+            }
         }
         if let Some(p) = &a.plot {
             eprintln!("wrote {}", p.display());

@@ -1,6 +1,6 @@
 //! `motif eval`: the evaluation protocol of thesis 5.5.2 on detection results.
 
-use motif_detect::{DetectionResult, EvalOptions, evaluate_many, plot_pr_and_stress};
+use motif_detect::{DetectionResult, EvalOptions, EvalSummary, evaluate_many, plot_pr_and_stress};
 
 use crate::cli::{EvalArgs, GlobalArgs};
 use crate::output::{bad_input, check_output, maybe_json};
@@ -47,9 +47,44 @@ pub fn run(a: EvalArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         let stress: Vec<String> =
             summary.mean_stress.iter().step_by(4).map(|(t, f)| format!("{t:.2}:{f:.2}")).collect();
         println!("stress (tau:F) {}", stress.join("  "));
+        if a.per_class {
+            print_per_class(&summary);
+        }
         if let Some(p) = &a.plot {
             eprintln!("wrote {}", p.display());
         }
     }
     maybe_json(&a.json.json, &summary)
+}
+
+/// The `--per-class` tables: annotated classes summed by name, then (one scene) detected classes.
+fn print_per_class(summary: &EvalSummary) {
+    let width = summary.annotated.iter().map(|t| t.name.len()).max().unwrap_or(0).max(15);
+    println!(
+        "{:<width$}  {:>6}  {:>9}  {:>5}  {:>8}  {:>6}  {:>9}",
+        "annotated class", "scenes", "instances", "found", "recalled", "missed", "elsewhere"
+    );
+    for t in &summary.annotated {
+        println!(
+            "{:<width$}  {:>6}  {:>9}  {:>5}  {:>8}  {:>6}  {:>9}",
+            t.name,
+            t.scenes,
+            t.instances,
+            t.found,
+            t.recalled,
+            t.instances - t.found,
+            t.found.saturating_sub(t.recalled)
+        );
+    }
+    println!(
+        "(missed: located by no detected box; elsewhere: located, but not by the class the recall credits)"
+    );
+    if let [scene] = summary.scenes.as_slice() {
+        let width = scene.detected.iter().map(|c| c.name.len()).max().unwrap_or(0).max(14);
+        println!("{:<width$}  {:>9}  {:>8}  against", "detected class", "instances", "credited");
+        for c in &scene.detected {
+            let against = c.best_annotated.map_or("-", |i| scene.annotated[i].name.as_str());
+            println!("{:<width$}  {:>9}  {:>8}  {against}", c.name, c.instances, c.credited);
+        }
+    }
 }
