@@ -250,24 +250,11 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         }
         if a.per_class {
             println!("EM + SC per annotated class (summed over the scenes):");
-            println!(
-                "{:<8} {:<16} {:>9} {:>5} {:>8} {:>6} {:>9}",
-                "level", "class", "instances", "found", "recalled", "missed", "elsewhere"
+            super::eval::print_annotated(
+                rows.iter()
+                    .filter(|r| r.method == "EM + SC")
+                    .flat_map(|r| r.annotated.iter().map(|t| (Some(r.difficulty), t))),
             );
-            for r in rows.iter().filter(|r| r.method == "EM + SC") {
-                for t in &r.annotated {
-                    println!(
-                        "{:<8} {:<16} {:>9} {:>5} {:>8} {:>6} {:>9}",
-                        r.difficulty,
-                        t.name,
-                        t.instances,
-                        t.found,
-                        t.recalled,
-                        t.instances - t.found,
-                        t.found.saturating_sub(t.recalled)
-                    );
-                }
-            }
         }
         if let Some(p) = &a.plot {
             eprintln!("wrote {}", p.display());

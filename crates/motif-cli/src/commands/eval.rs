@@ -1,6 +1,8 @@
 //! `motif eval`: the evaluation protocol of thesis 5.5.2 on detection results.
 
-use motif_detect::{DetectionResult, EvalOptions, EvalSummary, evaluate_many, plot_pr_and_stress};
+use motif_detect::{
+    AnnotatedClassTotals, DetectionResult, EvalOptions, EvalSummary, evaluate_many, plot_pr_and_stress,
+};
 
 use crate::cli::{EvalArgs, GlobalArgs};
 use crate::output::{bad_input, check_output, maybe_json};
@@ -59,14 +61,42 @@ pub fn run(a: EvalArgs, g: &GlobalArgs) -> anyhow::Result<()> {
 
 /// The `--per-class` tables: annotated classes summed by name, then (one scene) detected classes.
 fn print_per_class(summary: &EvalSummary) {
-    let width = summary.annotated.iter().map(|t| t.name.len()).max().unwrap_or(0).max(15);
+    print_annotated(summary.annotated.iter().map(|t| (None, t)));
+    if let [scene] = summary.scenes.as_slice() {
+        let width = scene.detected.iter().map(|c| c.name.len()).max().unwrap_or(0).max(14);
+        println!("{:<width$}  {:>9}  {:>8}  against", "detected class", "instances", "credited");
+        for c in &scene.detected {
+            let against = c.best_annotated.map_or("-", |i| scene.annotated[i].name.as_str());
+            println!("{:<width$}  {:>9}  {:>8}  {against}", c.name, c.instances, c.credited);
+        }
+    }
+}
+
+/// The annotated classes' table (`motif eval --per-class`, `motif bench detect --per-class`):
+/// one row per class, led by its difficulty level when the rows have one.
+pub(crate) fn print_annotated<'a>(
+    rows: impl IntoIterator<Item = (Option<&'a str>, &'a AnnotatedClassTotals)>,
+) {
+    let rows: Vec<_> = rows.into_iter().collect();
+    let width = rows.iter().map(|(_, t)| t.name.len()).max().unwrap_or(0).max(15);
+    let level = |l: Option<&str>| {
+        if rows.iter().any(|r| r.0.is_some()) { format!("{:<8} ", l.unwrap_or("")) } else { String::new() }
+    };
     println!(
-        "{:<width$}  {:>6}  {:>9}  {:>5}  {:>8}  {:>6}  {:>9}",
-        "annotated class", "scenes", "instances", "found", "recalled", "missed", "elsewhere"
+        "{}{:<width$}  {:>6}  {:>9}  {:>5}  {:>8}  {:>6}  {:>9}",
+        level(Some("level")),
+        "annotated class",
+        "scenes",
+        "instances",
+        "found",
+        "recalled",
+        "missed",
+        "elsewhere"
     );
-    for t in &summary.annotated {
+    for (l, t) in &rows {
         println!(
-            "{:<width$}  {:>6}  {:>9}  {:>5}  {:>8}  {:>6}  {:>9}",
+            "{}{:<width$}  {:>6}  {:>9}  {:>5}  {:>8}  {:>6}  {:>9}",
+            level(*l),
             t.name,
             t.scenes,
             t.instances,
@@ -79,12 +109,4 @@ fn print_per_class(summary: &EvalSummary) {
     println!(
         "(missed: located by no detected box; elsewhere: located, but not by the class the recall credits)"
     );
-    if let [scene] = summary.scenes.as_slice() {
-        let width = scene.detected.iter().map(|c| c.name.len()).max().unwrap_or(0).max(14);
-        println!("{:<width$}  {:>9}  {:>8}  against", "detected class", "instances", "credited");
-        for c in &scene.detected {
-            let against = c.best_annotated.map_or("-", |i| scene.annotated[i].name.as_str());
-            println!("{:<width$}  {:>9}  {:>8}  {against}", c.name, c.instances, c.credited);
-        }
-    }
 }
