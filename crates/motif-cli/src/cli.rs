@@ -621,7 +621,8 @@ pub struct BenchDetectArgs {
     /// report always has them, for every method).
     #[arg(long)]
     pub per_class: bool,
-    /// Mean PR and stress curves of EM + SC per difficulty (PNG).
+    /// EM + SC on the medium scenes (or the first level run): mean PR curve, stress curve and
+    /// per-class shares of located and credited instances (PNG).
     #[arg(long, value_name = "PNG")]
     pub plot: Option<PathBuf>,
     #[command(flatten)]
@@ -891,7 +892,7 @@ pub struct EvalArgs {
     /// Minimum overlap ratio vol(A∩B)/max(vol(A), vol(B)) for two boxes to match.
     #[arg(long, default_value_t = 0.125)]
     pub tau: f64,
-    /// PR curve and stress curve (PNG).
+    /// PR curve, stress curve and per-class shares of located and credited instances (PNG).
     #[arg(long, value_name = "PNG")]
     pub plot: Option<PathBuf>,
     /// Also print, per annotated class (summed by name over the scenes), how many instances some

@@ -1,6 +1,8 @@
 //! Pictures of the 5.5.2 evaluation (like the thesis's Fig. 5.9): the PR curve (precision
 //! against recall as detected classes are removed, largest first) and the stress curve (F
-//! against the minimum overlap ratio τ), side by side in one PNG.
+//! against the minimum overlap ratio τ), side by side in one PNG, with a third panel beyond the
+//! thesis: per annotated class, the shares of its instances the recall credits, that are located
+//! but sit in other classes, and that no detected box locates.
 //!
 //! Drawn like `motif-retarget`'s pictures: plotters into an RGB buffer, written with `motif_core::io::write_png_rgb`, text
 //! in DejaVu Sans embedded from the `dejavu` crate (no system fonts needed).
@@ -13,7 +15,7 @@ use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
 
 use crate::error::{DetectError, Result};
-use crate::eval::{EvalReport, EvalSummary};
+use crate::eval::{AnnotatedClassTotals, EvalReport, EvalSummary};
 
 const FONT: &str = "sans-serif";
 static FONT_ONCE: Once = Once::new();
@@ -38,6 +40,8 @@ pub trait EvalCurves {
     fn pr_points(&self) -> Vec<(f64, f64)>;
     /// Stress curve points as `(τ, F)`.
     fn stress_points(&self) -> Vec<(f64, f64)>;
+    /// Per annotated class: instances, located, credited (summed over the scenes).
+    fn annotated(&self) -> Vec<AnnotatedClassTotals>;
 }
 
 impl EvalCurves for EvalReport {
@@ -53,10 +57,25 @@ impl EvalCurves for EvalReport {
     fn stress_points(&self) -> Vec<(f64, f64)> {
         self.stress.clone()
     }
+    fn annotated(&self) -> Vec<AnnotatedClassTotals> {
+        self.annotated
+            .iter()
+            .map(|c| AnnotatedClassTotals {
+                name: c.name.clone(),
+                scenes: 1,
+                instances: c.instances,
+                found: c.found,
+                recalled: c.recalled,
+            })
+            .collect()
+    }
 }
 
 impl EvalCurves for EvalSummary {
     fn title(&self) -> String {
+        if let [scene] = self.scenes.as_slice() {
+            return scene.title();
+        }
         format!(
             "mean of {} scenes: P {:.3}, R {:.3}, F {:.3} at tau {}",
             self.scenes.len(),
@@ -72,19 +91,23 @@ impl EvalCurves for EvalSummary {
     fn stress_points(&self) -> Vec<(f64, f64)> {
         self.mean_stress.clone()
     }
+    fn annotated(&self) -> Vec<AnnotatedClassTotals> {
+        self.annotated.clone()
+    }
 }
 
-/// Draws the PR curve (left) and the stress curve (right) of `curves` to `path` (PNG,
-/// 1200 × 560 pixels).
+/// Draws the PR curve (left), the stress curve (middle) and the per-class shares (right) of
+/// `curves` to `path` (PNG, 1800 × 560 pixels).
 pub fn plot_pr_and_stress(curves: &impl EvalCurves, path: &Path) -> Result<()> {
     register_fonts();
-    let size = (1200u32, 560u32);
+    let size = (1800u32, 560u32);
     let mut buf = vec![255u8; size.0 as usize * size.1 as usize * 3];
     {
         let root = BitMapBackend::with_buffer(&mut buf, size).into_drawing_area();
         root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
         let root = root.titled(&curves.title(), (FONT, 20)).map_err(|e| plot_err(path, e))?;
-        let (left, right) = root.split_horizontally(size.0 / 2);
+        let (left, rest) = root.split_horizontally(size.0 / 3);
+        let (right, classes) = rest.split_horizontally(size.0 / 3);
         let pr_colour = RGBColor(214, 39, 40);
         draw_curve(
             &left,
@@ -109,6 +132,7 @@ pub fn plot_pr_and_stress(curves: &impl EvalCurves, path: &Path) -> Result<()> {
             stress_colour,
             path,
         )?;
+        draw_class_shares(&classes, &curves.annotated(), path)?;
         root.present().map_err(|e| plot_err(path, e))?;
     }
     motif_core::io::write_png_rgb(path, size.0, size.1, &buf).map_err(|e| plot_err(path, e))
@@ -145,6 +169,79 @@ fn draw_curve(
         .map_err(|e| plot_err(path, e))?;
     chart
         .draw_series(points.iter().map(|&p| Circle::new(p, 3, colour.filled())))
+        .map_err(|e| plot_err(path, e))?;
+    Ok(())
+}
+
+/// Height of the band below the bars that holds the legend, in rows.
+const LEGEND_BAND: f64 = 0.6;
+
+/// One bar per annotated class, split into the shares of its instances that the recall credits
+/// (green), that are located but sit in other classes (orange) and that are missed (grey),
+/// labelled with the counts.
+fn draw_class_shares(
+    area: &DrawingArea<BitMapBackend, Shift>,
+    classes: &[AnnotatedClassTotals],
+    path: &Path,
+) -> Result<()> {
+    let rows = classes.len().max(1) as f64;
+    let mut chart = ChartBuilder::on(area)
+        .caption("(c) annotated classes", (FONT, 18).into_font())
+        .margin(16)
+        .x_label_area_size(40)
+        .y_label_area_size(10)
+        .build_cartesian_2d(0.0..1.0, -LEGEND_BAND..rows)
+        .map_err(|e| plot_err(path, e))?;
+    chart
+        .configure_mesh()
+        .x_desc("share of the class's instances")
+        .y_labels(0)
+        .disable_y_mesh()
+        .label_style((FONT, 13))
+        .axis_desc_style((FONT, 14))
+        .light_line_style(RGBColor(235, 235, 235))
+        .draw()
+        .map_err(|e| plot_err(path, e))?;
+    let colours = [RGBColor(44, 160, 44), RGBColor(255, 127, 14), RGBColor(160, 160, 160)];
+    let names = ["credited", "elsewhere (in other classes)", "missed"];
+    for (k, (&colour, name)) in colours.iter().zip(names).enumerate() {
+        let bars = classes.iter().enumerate().filter_map(move |(row, c)| {
+            let n = c.instances.max(1) as f64;
+            let parts = [c.recalled, c.found.saturating_sub(c.recalled), c.instances - c.found];
+            let from = parts[..k].iter().sum::<usize>() as f64 / n;
+            let to = from + parts[k] as f64 / n;
+            // Top row first; the bar fills the lower half of its row, the label the upper half.
+            let y = rows - row as f64 - 1.0;
+            (to > from).then(|| Rectangle::new([(from, y + 0.1), (to, y + 0.5)], colour.filled()))
+        });
+        chart.draw_series(bars).map_err(|e| plot_err(path, e))?;
+        // The legend, one line in the band below the bars (a legend box would hide bars).
+        let x = k as f64 / 3.0;
+        let y = -LEGEND_BAND / 2.0;
+        chart
+            .draw_series(std::iter::once(
+                EmptyElement::at((x, y)) + Rectangle::new([(0, -6), (14, 6)], colour.filled()),
+            ))
+            .map_err(|e| plot_err(path, e))?;
+        chart
+            .draw_series(std::iter::once(
+                EmptyElement::at((x, y)) + Text::new(name, (20, -7), (FONT, 13).into_font()),
+            ))
+            .map_err(|e| plot_err(path, e))?;
+    }
+    let label_size = if classes.len() > 12 { 11 } else { 14 };
+    chart
+        .draw_series(classes.iter().enumerate().map(|(row, c)| {
+            let text = format!(
+                "{}: {} of {} credited, {} elsewhere, {} missed",
+                c.name,
+                c.recalled,
+                c.instances,
+                c.found.saturating_sub(c.recalled),
+                c.instances - c.found
+            );
+            Text::new(text, (0.005, rows - row as f64 - 0.12), (FONT, label_size).into_font())
+        }))
         .map_err(|e| plot_err(path, e))?;
     Ok(())
 }
