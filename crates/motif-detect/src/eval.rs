@@ -176,6 +176,32 @@ pub struct AnnotatedClassTotals {
     pub recalled: usize,
 }
 
+impl AnnotatedClassTotals {
+    /// Instances no detected box locates: `instances − found`.
+    pub fn missed(&self) -> usize {
+        self.instances - self.found
+    }
+
+    /// Instances located, but not by the detected class the recall credits: `found − recalled`
+    /// (never negative: a credited instance is a located one).
+    pub fn elsewhere(&self) -> usize {
+        self.found.saturating_sub(self.recalled)
+    }
+}
+
+impl From<&AnnotatedClassReport> for AnnotatedClassTotals {
+    /// One scene's row as totals over that scene.
+    fn from(c: &AnnotatedClassReport) -> Self {
+        AnnotatedClassTotals {
+            name: c.name.clone(),
+            scenes: 1,
+            instances: c.instances,
+            found: c.found,
+            recalled: c.recalled,
+        }
+    }
+}
+
 /// The figures of a set of scenes: per-scene reports and their means ("the final PR curve is the
 /// average of all scenes", thesis 5.5.2).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -421,24 +447,15 @@ pub fn evaluate_many<'a>(
 
     let mut annotated: Vec<AnnotatedClassTotals> = Vec::new();
     for c in scenes.iter().flat_map(|s| &s.annotated) {
-        let pos = match annotated.iter().position(|t| t.name == c.name) {
-            Some(pos) => pos,
-            None => {
-                annotated.push(AnnotatedClassTotals {
-                    name: c.name.clone(),
-                    scenes: 0,
-                    instances: 0,
-                    found: 0,
-                    recalled: 0,
-                });
-                annotated.len() - 1
+        match annotated.iter_mut().find(|t| t.name == c.name) {
+            Some(t) => {
+                t.scenes += 1;
+                t.instances += c.instances;
+                t.found += c.found;
+                t.recalled += c.recalled;
             }
-        };
-        let t = &mut annotated[pos];
-        t.scenes += 1;
-        t.instances += c.instances;
-        t.found += c.found;
-        t.recalled += c.recalled;
+            None => annotated.push(c.into()),
+        }
     }
 
     Ok(EvalSummary {

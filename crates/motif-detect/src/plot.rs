@@ -58,16 +58,7 @@ impl EvalCurves for EvalReport {
         self.stress.clone()
     }
     fn annotated(&self) -> Vec<AnnotatedClassTotals> {
-        self.annotated
-            .iter()
-            .map(|c| AnnotatedClassTotals {
-                name: c.name.clone(),
-                scenes: 1,
-                instances: c.instances,
-                found: c.found,
-                recalled: c.recalled,
-            })
-            .collect()
+        self.annotated.iter().map(AnnotatedClassTotals::from).collect()
     }
 }
 
@@ -207,7 +198,7 @@ fn draw_class_shares(
     for (k, (&colour, name)) in colours.iter().zip(names).enumerate() {
         let bars = classes.iter().enumerate().filter_map(move |(row, c)| {
             let n = c.instances.max(1) as f64;
-            let parts = [c.recalled, c.found.saturating_sub(c.recalled), c.instances - c.found];
+            let parts = [c.recalled, c.elsewhere(), c.missed()];
             let from = parts[..k].iter().sum::<usize>() as f64 / n;
             let to = from + parts[k] as f64 / n;
             // Top row first; the bar fills the lower half of its row, the label the upper half.
@@ -237,8 +228,8 @@ fn draw_class_shares(
                 c.name,
                 c.recalled,
                 c.instances,
-                c.found.saturating_sub(c.recalled),
-                c.instances - c.found
+                c.elsewhere(),
+                c.missed()
             );
             Text::new(text, (0.005, rows - row as f64 - 0.12), (FONT, label_size).into_font())
         }))

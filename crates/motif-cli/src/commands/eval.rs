@@ -102,8 +102,8 @@ pub(crate) fn print_annotated<'a>(
             t.instances,
             t.found,
             t.recalled,
-            t.instances - t.found,
-            t.found.saturating_sub(t.recalled)
+            t.missed(),
+            t.elsewhere()
         );
     }
     println!(
