@@ -200,6 +200,9 @@ pub fn icp_with_tree(
         let step = solve_step(&state, target, normals, options.motion);
         transform = mat4_mul(&step.transform, &transform);
         iterations += 1;
+        if transform.iter().flatten().any(|v| !v.is_finite()) {
+            return Err(diverged(iterations));
+        }
         if step.max_displacement <= threshold {
             converged = true;
             break;
@@ -210,6 +213,9 @@ pub fn icp_with_tree(
         return Err(no_inliers(options));
     }
     let rmse = state.rmse(target, normals);
+    if !rmse.is_finite() {
+        return Err(diverged(iterations));
+    }
     Ok(IcpResult {
         transform,
         rmse,
@@ -217,6 +223,15 @@ pub fn icp_with_tree(
         iterations,
         converged,
     })
+}
+
+/// The arithmetic overflowed: coordinates so large (about 1e154 or more) that their squares are
+/// infinite.
+fn diverged(iterations: usize) -> Error {
+    Error::InvalidInput(format!(
+        "ICP diverged at iteration {iterations}: the transform or its error is NaN or infinite (are \
+         the coordinates too large to square? rescale the inputs)"
+    ))
 }
 
 fn no_inliers(options: &IcpOptions) -> Error {
@@ -588,6 +603,11 @@ mod tests {
         let far = IcpOptions { max_correspondence_distance: Some(1e-3), ..Default::default() };
         let shifted: Vec<Point3> = pts.iter().map(|p| [p[0] + 10.0, p[1], p[2]]).collect();
         assert!(icp(&shifted, &pts, None, &IDENTITY4, &far).is_err());
+        // Coordinates whose squares overflow: an error, not a NaN transform.
+        let huge: Vec<Point3> =
+            pts.iter().map(|p| [1e300 + p[0] * 1e300, 1e300, 1e300 + p[1] * 1e300]).collect();
+        let e = icp(&huge, &pts, None, &IDENTITY4, &o).expect_err("overflowing input");
+        assert!(e.to_string().contains("diverged"), "{e}");
     }
 
     #[test]

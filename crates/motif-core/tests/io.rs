@@ -37,6 +37,7 @@ const EXPECT: &[(&str, Position, &str)] = &[
     ("gltf_escaping_uri.gltf", Whole, "leaves the directory"),
     ("gltf_index_out_of_range.gltf", Whole, "is 5, but there are 3 vertices"),
     ("gltf_missing_buffer_file.gltf", Whole, "cannot read"),
+    ("gltf_position_accessor_missing.gltf", Whole, "POSITION\"]: Index out of bounds"),
     ("obj_all_degenerate.obj", Line(4), "all 2 faces are degenerate"),
     ("obj_bad_corner.obj", Line(4), "bad face corner"),
     ("obj_index_out_of_range.obj", Line(5), "vertex 4, but the file has only 3"),
@@ -279,6 +280,19 @@ fn formats_come_from_extensions_and_are_checked_by_content() {
     let e = io::read_from_bytes(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", Format::Ply, Path::new("x.ply"))
         .unwrap_err();
     assert!(e.to_string().contains("looks like OBJ"), "{e}");
+}
+
+#[test]
+fn a_utf8_byte_order_mark_before_text_is_skipped() {
+    // Read as text, the mark would hide the first vertex and shift every index after it.
+    let obj = b"\xEF\xBB\xBFv 9 9 9\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    let m = io::read_from_bytes(obj, Format::Obj, Path::new("bom.obj")).unwrap();
+    assert_eq!(m.vertices.positions.len(), 4);
+    assert_eq!(m.vertices.positions[0], [9.0, 9.0, 9.0]);
+    assert_eq!(m.triangles, vec![[0, 1, 2]]);
+    let stl = b"\xEF\xBB\xBFsolid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid t\n";
+    let m = io::read_from_bytes(stl, Format::Stl, Path::new("bom.stl")).unwrap();
+    assert_eq!((m.vertices.positions.len(), m.triangles.len()), (3, 1));
 }
 
 #[test]

@@ -189,7 +189,30 @@ fn split_glb<'a>(bytes: &'a [u8], path: &Path) -> Result<Container<'a>> {
 fn parse_document(json_bytes: &[u8]) -> std::result::Result<::gltf::Document, ::gltf::Error> {
     use json::validation::{Error as V, Validate};
     let root: json::Root = json::deserialize::from_slice(json_bytes)?;
+    // gltf-json 1.4's validation indexes the accessor of every POSITION attribute before checking
+    // that it exists (it panics on an index out of range), so that index is checked first.
     let mut errors = Vec::new();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (k, primitive) in mesh.primitives.iter().enumerate() {
+            let position =
+                primitive.attributes.get(&json::validation::Checked::Valid(json::mesh::Semantic::Positions));
+            if position.is_some_and(|i| i.value() >= root.accessors.len()) {
+                errors.push((
+                    json::Path::new()
+                        .field("meshes")
+                        .index(m)
+                        .field("primitives")
+                        .index(k)
+                        .field("attributes")
+                        .key("POSITION"),
+                    V::IndexOutOfBounds,
+                ));
+            }
+        }
+    }
+    if !errors.is_empty() {
+        return Err(::gltf::Error::Validation(errors));
+    }
     root.validate(&root, json::Path::new, &mut |p, e| {
         let p = p();
         let bounds = p.as_str().ends_with(".min") || p.as_str().ends_with(".max");

@@ -27,7 +27,13 @@ struct Corner {
     n: u32,
 }
 
+/// The UTF-8 byte-order mark.
+pub(super) const UTF8_BOM: &[u8] = b"\xEF\xBB\xBF";
+
 pub(super) fn read(bytes: &[u8], path: &Path) -> Result<Model> {
+    // A UTF-8 byte-order mark (some Windows editors write one) is not part of the first line:
+    // read as text, it would hide the first statement, and every index after it would shift.
+    let bytes = bytes.strip_prefix(UTF8_BOM).unwrap_or(bytes);
     let mut positions: Vec<Point3> = Vec::new();
     let mut colors: Vec<[u8; 3]> = Vec::new();
     let mut vn: Vec<Point3> = Vec::new();

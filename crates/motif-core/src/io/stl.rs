@@ -22,9 +22,12 @@ pub(super) fn read(bytes: &[u8], path: &Path) -> Result<Model> {
         .then(|| u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as u64);
     let binary_size_matches =
         declared.is_some_and(|n| HEADER as u64 + RECORD as u64 * n == bytes.len() as u64);
-    let starts_solid = bytes.trim_ascii_start().starts_with(b"solid");
+    // ASCII STL saved with a UTF-8 byte-order mark; a binary header may hold any bytes, so the
+    // mark is dropped only when text follows it.
+    let text = bytes.strip_prefix(super::obj::UTF8_BOM).unwrap_or(bytes);
+    let starts_solid = text.trim_ascii_start().starts_with(b"solid");
     if starts_solid {
-        match read_ascii(bytes, path) {
+        match read_ascii(text, path) {
             Ok(m) => return Ok(m),
             // A binary file whose header happens to begin with "solid".
             Err(_) if binary_size_matches => {}

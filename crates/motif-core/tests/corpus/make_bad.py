@@ -159,4 +159,8 @@ put("gltf_index_out_of_range.gltf", json.dumps(
     doc(uri="data:application/octet-stream;base64,"
         + base64.b64encode(positions + struct.pack("<3H", 0, 1, 5) + b"\0\0").decode()), indent=1))
 
+# POSITION names an accessor that does not exist (gltf-json's validation indexes it unchecked)
+put("gltf_position_accessor_missing.gltf",
+    '{"asset": {"version": "2.0"}, "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}]}\n')
+
 print(f"wrote {len(os.listdir(HERE))} files to {HERE}")
