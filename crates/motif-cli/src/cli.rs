@@ -25,7 +25,8 @@ pub struct GlobalArgs {
     /// Seed for every random choice, so results reproduce exactly.
     #[arg(long, global = true, default_value_t = 1)]
     pub seed: u64,
-    /// Overwrite existing outputs, including writing onto an input path.
+    /// Allow an output to overwrite an input file, and lift the size limits (of detect, retarget,
+    /// sample). Existing files that are not inputs are replaced without it, as `cp` does.
     #[arg(long, global = true)]
     pub force: bool,
     /// Number of worker threads (default: all cores).

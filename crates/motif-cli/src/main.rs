@@ -31,9 +31,21 @@ fn quiet_on_broken_pipe() {
     }));
 }
 
+/// `--threads` beyond this many per core only costs time (thousands of threads take seconds to
+/// start and contend for the cores).
+const MAX_THREADS_PER_CORE: usize = 8;
+
 fn main() -> ExitCode {
     quiet_on_broken_pipe();
     let cli = cli::Cli::parse();
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    if let Some(threads) = cli.global.threads.filter(|&t| t > MAX_THREADS_PER_CORE * cores) {
+        eprintln!(
+            "error: --threads {threads}: more than {} ({MAX_THREADS_PER_CORE} per core on this machine's {cores})",
+            MAX_THREADS_PER_CORE * cores
+        );
+        return ExitCode::from(2);
+    }
     if let Some(threads) = cli.global.threads {
         // A second initialisation can only fail if something already built the pool; ignore.
         let _ = rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build_global();

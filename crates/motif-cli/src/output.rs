@@ -126,22 +126,66 @@ fn io_exit_code(e: &std::io::Error) -> u8 {
     }
 }
 
-/// Refuses to write `output` when it is one of the `inputs` (same file after resolving links),
-/// unless `force`. Outputs that merely exist are replaced, as `cp` does.
-pub fn check_output(output: &Path, inputs: &[&Path], force: bool) -> anyhow::Result<()> {
-    if force {
-        return Ok(());
-    }
-    let Ok(out) = std::fs::canonicalize(output) else { return Ok(()) };
-    for input in inputs {
-        if std::fs::canonicalize(input).is_ok_and(|i| i == out) {
+/// Checks every output of a command before any work is done, so that a bad path costs nothing
+/// and leaves nothing behind: each output's directory must exist and the output must not be a
+/// directory; no output may be one of the `inputs` (the same file after resolving links) unless
+/// `force`; and no two outputs may be the same file, even with `force` (one would silently
+/// replace the other). Outputs that merely exist are replaced, as `cp` does. `None` (an output
+/// not asked for) and `-` (a report on stdout) are skipped.
+pub fn check_outputs(outputs: &[Option<&Path>], inputs: &[&Path], force: bool) -> anyhow::Result<()> {
+    let mut seen: Vec<(PathBuf, &Path)> = Vec::new();
+    for output in outputs.iter().flatten().copied() {
+        if output == Path::new("-") {
+            continue;
+        }
+        let resolved = resolve_output(output)?;
+        if let Some((_, first)) = seen.iter().find(|(r, _)| *r == resolved) {
+            return Err(bad_input(if *first == output {
+                format!("{}: given for two outputs (each output needs its own file)", output.display())
+            } else {
+                format!(
+                    "{} and {}: the same file given for two outputs (each output needs its own file)",
+                    first.display(),
+                    output.display()
+                )
+            }));
+        }
+        if !force && inputs.iter().any(|i| std::fs::canonicalize(i).is_ok_and(|i| i == resolved)) {
             return Err(bad_input(format!(
                 "{}: refusing to overwrite an input file (choose another output or pass --force)",
                 output.display()
             )));
         }
+        seen.push((resolved, output));
     }
     Ok(())
+}
+
+/// Where `output` will be written: its resolved directory joined with its file name (the file
+/// itself need not exist). Errors when the directory does not exist or the path is a directory.
+fn resolve_output(output: &Path) -> anyhow::Result<PathBuf> {
+    if output.is_dir() {
+        return Err(bad_input(format!("{}: is a directory, not an output file", output.display())));
+    }
+    if let Ok(existing) = std::fs::canonicalize(output) {
+        return Ok(existing);
+    }
+    let Some(name) = output.file_name() else {
+        return Err(bad_input(format!("{}: not a file name", output.display())));
+    };
+    let dir = match output.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    match std::fs::canonicalize(dir) {
+        Ok(d) if d.is_dir() => Ok(d.join(name)),
+        Ok(_) => Err(bad_input(format!("{}: {} is not a directory", output.display(), dir.display()))),
+        Err(_) => Err(bad_input(format!(
+            "{}: the directory {} does not exist (create it first)",
+            output.display(),
+            dir.display()
+        ))),
+    }
 }
 
 /// Writes a JSON report: to stdout when `dest` is `-`, else atomically to the file.

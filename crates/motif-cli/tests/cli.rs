@@ -89,6 +89,62 @@ fn refuses_to_overwrite_its_input_unless_forced() {
 }
 
 #[test]
+fn every_output_is_checked_before_any_work() {
+    let d = tmp();
+    assert!(motif(&["example", "shelf", "s.obj"], d.path()).status.success());
+    let shelf = std::fs::read(d.path().join("s.obj")).unwrap();
+    let refused = |args: &[&str], says: &str| {
+        let o = motif(args, d.path());
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        let e = stderr(&o);
+        assert!(e.contains(says) && !e.contains("panicked"), "{args:?}: {e}");
+    };
+    // A report or a plot onto an input (the JSON report once replaced inputs silently).
+    refused(&["info", "s.obj", "--json", "s.obj"], "refusing to overwrite an input");
+    refused(&["convert", "s.obj", "o.ply", "--json", "s.obj"], "refusing to overwrite an input");
+    refused(&["sparsity", "s.obj", "--plot", "s.obj"], "refusing to overwrite an input");
+    assert_eq!(std::fs::read(d.path().join("s.obj")).unwrap(), shelf, "input untouched");
+    // Two outputs on one file: one would silently replace the other, so even --force refuses.
+    refused(
+        &["convert", "s.obj", "c.obj", "--json", "./c.obj", "--force"],
+        "the same file given for two outputs",
+    );
+    refused(
+        &["example", "windmill", "w.obj", "--annotation", "a.json", "--handles", "a.json"],
+        "two outputs",
+    );
+    // A secondary output in a missing folder fails before the main output is written.
+    refused(&["convert", "s.obj", "o.ply", "--json", "nodir/r.json"], "nodir does not exist");
+    refused(
+        &["retarget", "s.obj", "-o", "r.obj", "--steps", "1", "--preview", "nodir/p.png"],
+        "does not exist",
+    );
+    refused(&["example", "shelf", "x.obj", "--structure", "nodir/s.json"], "does not exist");
+    refused(&["convert", "s.obj", "."], "is a directory");
+    // Outputs that could not hold the result are refused up front too.
+    refused(&["curvature", "s.obj", "k.obj"], "PLY");
+    // Absurd sizes are refused instead of aborting on allocation.
+    refused(&["sample", "s.obj", "x.ply", "--count", "99999999999999"], "--force");
+    refused(&["mrf", "generate", "--dims", "100,100,100", "--labels", "1024", "-o", "g.json"], "enormous");
+    refused(&["--threads", "100000", "info", "s.obj"], "--threads");
+    assert_eq!(files_in(d.path()), vec![d.path().join("s.obj")], "nothing written by the refused commands");
+}
+
+#[test]
+fn sparsity_with_no_readable_model_fails() {
+    let d = tmp();
+    std::fs::create_dir(d.path().join("bad")).unwrap();
+    std::fs::write(d.path().join("bad/a.obj"), b"garbage\n").unwrap();
+    let o = motif(&["sparsity", "bad"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("no model could be analysed") && stderr(&o).contains("a.obj"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
 fn example_convert_info_round_trip_every_format() {
     let d = tmp();
     let o = motif(&["example", "shelf", "shelf.ply", "--structure", "shelf.json"], d.path());
@@ -680,11 +736,20 @@ fn detect_rejects_an_option_out_of_range_by_its_flag_before_reading() {
         ("--bandwidth", "nan"),
         ("--words", "1"),
         ("--fit-trim", "0.5"),
+        ("--em-iterations", "1000000000"),
+        ("--mesh-samples", "99999999999999"),
     ] {
         let o = motif(&["detect", "missing.ply", "-o", "out.json", flag, value], dir.path());
         assert_eq!(o.status.code(), Some(2), "{flag}: {}", stderr(&o));
         assert!(stderr(&o).contains(flag) && !stderr(&o).contains("missing.ply"), "{flag}: {}", stderr(&o));
         assert!(!dir.path().join("out.json").exists());
+    }
+    for extra in [["--labels", "l.stl"], ["--as-symmetry", "out.json"]] {
+        let mut args = vec!["detect", "missing.ply", "-o", "out.json"];
+        args.extend(extra);
+        let o = motif(&args, dir.path());
+        assert_eq!(o.status.code(), Some(2), "{extra:?}: {}", stderr(&o));
+        assert!(!stderr(&o).contains("missing.ply"), "{extra:?} refused before reading: {}", stderr(&o));
     }
     let o = motif(&["bench", "detect", "--peak-share=-0.1"], dir.path());
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));

@@ -102,8 +102,9 @@ pub enum DeformError {
     /// A symmetry transform does not map its region onto the shape within the tolerance.
     #[error(
         "symmetry {symmetry:?}: {transform} maps region vertices up to {residual:.3e} × the diagonal away \
-         from the shape (tolerance {tolerance:.1e}); fix the annotation, raise its tolerance, or use \
-         validation = force to deform on the approximate symmetry"
+         from the shape (tolerance {tolerance:.1e}); fix the annotation, raise its tolerance, or force \
+         validation (`AnnotationValidation::Force`; `--force` in the CLI) to deform on the approximate \
+         symmetry"
     )]
     SymmetryMismatch {
         /// The symmetry's name.

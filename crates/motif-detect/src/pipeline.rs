@@ -23,6 +23,11 @@ use crate::hoc::{HocOptions, compute};
 use crate::instances::{Class, ClusteringReport, InstanceOptions, detect_instances};
 use crate::preprocess::{Feature, PreprocessOptions, Preprocessed, preprocess};
 
+/// Most EM iterations [`DetectOptions::validate`] accepts: the thesis runs 5 (5.4), and on
+/// noisy scans the memberships keep changing by more than the 1% stopping rule, so an absurd
+/// count would run for hours.
+pub const MAX_EM_ITERATIONS: usize = 100;
+
 /// Which variant of the detector runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
@@ -196,6 +201,15 @@ impl DetectOptions {
         }
         if self.extent.content.grid == 0 {
             return bad("extent.content.grid", "must be at least 1, got 0".into());
+        }
+        if !(1..=MAX_EM_ITERATIONS).contains(&self.em.iterations) {
+            let v = self.em.iterations;
+            return bad(
+                "em.iterations",
+                format!(
+                    "must be 1 to {MAX_EM_ITERATIONS} (thesis 5.4: 5; EM rarely settles on noisy scans), got {v}"
+                ),
+            );
         }
         if self.dictionary.words < 2 {
             return bad("dictionary.words", format!("must be at least 2, got {}", self.dictionary.words));

@@ -2,6 +2,7 @@
 
 use std::time::Instant;
 
+use anyhow::Context;
 use motif_core::TriMesh;
 use motif_core::geometry::IDENTITY4;
 use motif_core::icp::{IcpMetric, IcpMotion, IcpOptions, icp};
@@ -25,8 +26,16 @@ struct AlignReport {
 }
 
 pub fn run(a: AlignArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    crate::output::check_outputs(
+        &[a.output.as_deref(), a.json.json.as_deref()],
+        &[&a.source, &a.target],
+        g.force,
+    )?;
     if !(a.trim > 0.0 && a.trim <= 1.0) {
         return Err(bad_input(format!("--trim {}: must be in (0, 1]", a.trim)));
+    }
+    if a.iterations == 0 || a.iterations > 10_000 {
+        return Err(bad_input(format!("--iterations {}: use 1 to 10000", a.iterations)));
     }
     let source = super::read_model(&a.source)?;
     let target = super::read_model(&a.target)?;
@@ -59,7 +68,8 @@ pub fn run(a: AlignArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         target_normals.as_deref(),
         &IDENTITY4,
         &options,
-    )?;
+    )
+    .with_context(|| format!("aligning {} to {}", a.source.display(), a.target.display()))?;
     let ms = ms_since(t);
     if let Some(out) = &a.output {
         let mut moved = source.clone();

@@ -5,7 +5,7 @@ use motif_detect::{DetectionResult, EvalOptions, evaluate};
 use serde::Serialize;
 
 use crate::cli::{GlobalArgs, RigidIcpArgs, RotationsArg};
-use crate::output::{bad_input, check_output, json_on_stdout, maybe_json, write_json};
+use crate::output::{bad_input, check_outputs, json_on_stdout, maybe_json, write_json};
 
 #[derive(Debug, Serialize)]
 struct Report {
@@ -23,18 +23,7 @@ struct Report {
 /// `motif baseline rigid-icp SCENE --gt GT -o RESULT [--json REPORT]`.
 pub fn rigid_icp(a: RigidIcpArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let inputs = [a.scene.as_path(), a.gt.as_path()];
-    check_output(&a.output, &inputs, g.force)?;
-    if let Some(j) = &a.json.json {
-        if j.as_path() != std::path::Path::new("-") {
-            check_output(j, &inputs, g.force)?;
-            if j == &a.output {
-                return Err(bad_input(format!(
-                    "{}: the report and the result need different files",
-                    j.display()
-                )));
-            }
-        }
-    }
+    check_outputs(&[Some(&a.output), a.json.json.as_deref()], &inputs, g.force)?;
     let cloud = super::read_model(&a.scene)?.vertices;
     if cloud.is_empty() {
         return Err(bad_input(format!("{}: no points", a.scene.display())));

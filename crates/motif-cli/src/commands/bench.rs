@@ -158,6 +158,7 @@ fn bench_one(
 }
 
 pub fn deform(a: BenchDeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    crate::output::check_outputs(&[a.json.json.as_deref()], &[], g.force)?;
     if a.frames == 0 {
         return Err(bad_input("--frames 0: time at least one frame"));
     }

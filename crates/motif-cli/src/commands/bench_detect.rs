@@ -21,7 +21,7 @@ use motif_detect::{
 use serde::Serialize;
 
 use crate::cli::{BenchDetectArgs, GlobalArgs, RegroupArg, RepeatedSegmentsArg};
-use crate::output::{bad_input, check_output, maybe_json};
+use crate::output::{bad_input, check_outputs, maybe_json};
 use crate::progress::Bar;
 
 #[derive(Debug, Serialize)]
@@ -107,9 +107,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         o
     };
     super::detect::validate_options(&options(Method::EmSc, g.seed))?;
-    if let Some(p) = &a.plot {
-        check_output(p, &[], g.force)?;
-    }
+    check_outputs(&[a.plot.as_deref(), a.json.json.as_deref()], &[], g.force)?;
     let bar = Bar::new(g.quiet);
     let eval = EvalOptions::default();
     let mut rows = Vec::new();

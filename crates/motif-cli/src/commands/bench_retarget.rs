@@ -142,6 +142,7 @@ const GCO_MS: [([usize; 3], usize, Connectivity, f64); 6] = [
 ];
 
 pub fn run(a: BenchRetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    crate::output::check_outputs(&[a.json.json.as_deref()], &[], g.force)?;
     if a.repeats == 0 {
         return Err(bad_input("--repeats must be at least 1"));
     }

@@ -18,6 +18,7 @@ struct ConvertReport {
 }
 
 pub fn run(a: ConvertArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    crate::output::check_outputs(&[Some(&a.output), a.json.json.as_deref()], &[&a.input], g.force)?;
     let t = Instant::now();
     let model = super::read_model(&a.input)?;
     super::write_model(&a.output, &model, &[&a.input], g, &super::write_options(&a.encoding))?;

@@ -12,7 +12,7 @@ use motif_core::{AttributeData, TriMesh};
 use serde::Serialize;
 
 use crate::cli::{CurvatureArgs, GlobalArgs};
-use crate::output::{bad_input, check_output, maybe_json, ms_since};
+use crate::output::{bad_input, maybe_json, ms_since};
 
 #[derive(Debug, Serialize)]
 struct Summary {
@@ -44,6 +44,15 @@ fn summary(mut v: Vec<f64>) -> Summary {
 }
 
 pub fn run(a: CurvatureArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    crate::output::check_outputs(&[Some(&a.output), a.json.json.as_deref()], &[&a.input], g.force)?;
+    let ext = a.output.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
+    if !matches!(ext.as_deref(), Some("ply" | "csv")) {
+        return Err(bad_input(format!(
+            "{}: curvature is written as PLY (vertex properties k1, k2, d1, d2) or CSV; other formats \
+             cannot hold it",
+            a.output.display()
+        )));
+    }
     let mut model = super::read_model(&a.input)?;
     let neighbourhood = match (a.k, a.radius) {
         (_, Some(r)) if !(r > 0.0 && r.is_finite()) => {
@@ -52,6 +61,9 @@ pub fn run(a: CurvatureArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         (_, Some(r)) => Neighbourhood::Radius(r),
         (Some(k), None) if k < 6 => {
             return Err(bad_input(format!("-k {k}: a quadratic fit needs at least 6 neighbours")));
+        }
+        (Some(k), None) if k > 1000 => {
+            return Err(bad_input(format!("-k {k}: use at most 1000 neighbours (the default is 15)")));
         }
         (Some(k), None) => Neighbourhood::Knn(k),
         (None, None) => Neighbourhood::Knn(15),
@@ -73,7 +85,6 @@ pub fn run(a: CurvatureArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         }
     })?;
     let ms = ms_since(t);
-    check_output(&a.output, &[&a.input], g.force)?;
     let is_csv = a.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv"));
     if is_csv {
         write_csv(&a.output, &model.vertices.positions, &pc)?;

@@ -2,6 +2,8 @@
 
 use std::time::Instant;
 
+use anyhow::Context;
+
 use motif_core::io::{Model, WriteOptions};
 use motif_core::procedural::SymmetryAnnotation;
 use motif_deform::annotation::read_annotation;
@@ -12,7 +14,7 @@ use motif_deform::{DeformSession, HandlesFile};
 use serde::Serialize;
 
 use crate::cli::{DeformArgs, GlobalArgs};
-use crate::output::{bad_input, check_output, maybe_json, ms_since};
+use crate::output::{bad_input, check_outputs, maybe_json, ms_since};
 
 /// Median and 95th percentile of a list of milliseconds.
 #[derive(Debug, Clone, Copy, Serialize, Default)]
@@ -56,6 +58,12 @@ struct DeformReport {
 }
 
 pub fn run(a: DeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    let inputs: Vec<&std::path::Path> =
+        [Some(a.mesh.as_path()), a.symmetry.as_deref(), Some(a.handles.as_path())]
+            .into_iter()
+            .flatten()
+            .collect();
+    check_outputs(&[Some(&a.output), a.json.json.as_deref()], &inputs, g.force)?;
     let t0 = Instant::now();
     let mesh = motif_core::io::read_mesh(&a.mesh)?;
     let annotation = match &a.symmetry {
@@ -68,10 +76,6 @@ pub fn run(a: DeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         None => return Err(bad_input("give --symmetry ANNOT (or --no-symmetry to deform without one)")),
     };
     let handles = HandlesFile::read(&a.handles)?;
-    check_output(&a.output, &[&a.mesh, &a.handles], g.force)?;
-    if let Some(p) = &a.symmetry {
-        check_output(&a.output, &[p], g.force)?;
-    }
     let mut options = DeformOptions {
         symmetry: if a.no_symmetry { SymmetryMode::Ignore } else { SymmetryMode::Preserve },
         validation: if g.force { AnnotationValidation::Force } else { AnnotationValidation::Strict },
@@ -98,8 +102,13 @@ pub fn run(a: DeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     }
 
     let bar = crate::progress::Bar::new(g.quiet);
-    let mut session = bar.spin("precompute", || DeformSession::new(&mesh, &annotation, &options))?;
-    session.set_handles(&handles.handles)?;
+    let mut session = bar
+        .spin("precompute", || DeformSession::new(&mesh, &annotation, &options))
+        .with_context(|| match &a.symmetry {
+            Some(s) => format!("{} with {}", a.mesh.display(), s.display()),
+            None => a.mesh.display().to_string(),
+        })?;
+    session.set_handles(&handles.handles).with_context(|| a.handles.display().to_string())?;
     let prefactor_ms = session.stats().timings.prefactor_ms;
     let frames: Vec<Vec<[[f64; 4]; 4]>> =
         if handles.frames.is_empty() { vec![handles.transforms()] } else { handles.frames.clone() };
@@ -114,14 +123,17 @@ pub fn run(a: DeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             )));
         }
         let t = Instant::now();
-        session.solve(f)?;
+        session.solve(f).with_context(|| format!("{}: frame {i}", a.handles.display()))?;
         frame.push(ms_since(t));
         solve.push(session.stats().timings.solve_ms);
         lift.push(session.stats().timings.lift_ms);
     }
     let positions = session.positions().to_vec();
     if positions.iter().any(|p| !motif_core::geometry::is_finite(*p)) {
-        anyhow::bail!("the deformation produced non-finite positions; nothing was written");
+        anyhow::bail!(
+            "{}: the deformation produced non-finite positions; nothing was written",
+            a.mesh.display()
+        );
     }
     // The residual is measured against the annotation even with --no-symmetry: that contrast is
     // what the symmetric basis buys.

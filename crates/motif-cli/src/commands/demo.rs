@@ -71,6 +71,7 @@ impl Demo<'_> {
 
 pub fn run(a: DemoArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    crate::output::check_outputs(&[a.json.json.as_deref()], &[], g.force)?;
     if !g.quiet {
         println!("Motif demo: generated shapes with known structure, run through the geometry core.");
         println!("Outputs go to {}/ (open the .obj/.ply files in any viewer).\n", a.out.display());

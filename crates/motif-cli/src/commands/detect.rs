@@ -7,7 +7,7 @@ use motif_detect::preprocess::Epsilon;
 use motif_detect::{DetectError, DetectOptions, Detection};
 
 use crate::cli::{DetectArgs, GlobalArgs};
-use crate::output::{check_output, maybe_json, write_json};
+use crate::output::{check_outputs, maybe_json, write_json};
 use crate::progress::Bar;
 
 /// Distinct colours for classes (Tableau 10); background points are grey.
@@ -37,6 +37,7 @@ pub fn validate_options(o: &DetectOptions) -> anyhow::Result<()> {
                 "dictionary.min_score" => "--min-score",
                 "em.sigma_s" => "--sigma-s",
                 "em.peak_share" => "--peak-share",
+                "em.iterations" => "--em-iterations",
                 "instances.bandwidth" => "--bandwidth",
                 "mdl_min_saving" => "--mdl-min-saving",
                 "extent.fit_trim" => "--fit-trim",
@@ -84,17 +85,28 @@ pub fn options(a: &DetectArgs, g: &GlobalArgs) -> DetectOptions {
 
 pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let inputs = [a.input.as_path()];
-    check_output(&a.output, &inputs, g.force)?;
-    for p in [&a.labels, &a.as_symmetry].into_iter().flatten() {
-        check_output(p, &inputs, g.force)?;
-    }
-    if let Some(j) = &a.json.json {
-        if !crate::output::json_on_stdout(&a.json.json) {
-            check_output(j, &inputs, g.force)?;
+    check_outputs(
+        &[Some(&a.output), a.labels.as_deref(), a.as_symmetry.as_deref(), a.json.json.as_deref()],
+        &inputs,
+        g.force,
+    )?;
+    if let Some(p) = &a.labels {
+        if !p.extension().is_some_and(|e| e.eq_ignore_ascii_case("ply")) {
+            return Err(crate::output::bad_input(format!(
+                "{}: --labels is written as PLY (per-point class and instance properties); other formats \
+                 cannot hold them",
+                p.display()
+            )));
         }
     }
     let o = options(&a, g);
     validate_options(&o)?;
+    if a.mesh_samples > o.preprocess.max_points && !g.force {
+        return Err(crate::output::bad_input(format!(
+            "--mesh-samples {}: more than {} points (pass --force to sample that many anyway)",
+            a.mesh_samples, o.preprocess.max_points
+        )));
+    }
     let bar = Bar::new(g.quiet);
     let model = bar.spin("reading", || super::read_model(&a.input))?;
     let scene = a.input.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();

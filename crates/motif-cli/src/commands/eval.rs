@@ -5,12 +5,14 @@ use motif_detect::{
 };
 
 use crate::cli::{EvalArgs, GlobalArgs};
-use crate::output::{bad_input, check_output, maybe_json};
+use crate::output::{bad_input, check_outputs, maybe_json};
 
 pub fn run(a: EvalArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     if a.files.len() % 2 != 0 {
         return Err(bad_input(format!("give RESULT GT pairs: {} files is an odd number", a.files.len())));
     }
+    let inputs: Vec<&std::path::Path> = a.files.iter().map(|f| f.as_path()).collect();
+    check_outputs(&[a.plot.as_deref(), a.json.json.as_deref()], &inputs, g.force)?;
     let options = EvalOptions { tau: a.tau, ..Default::default() };
     options.validate()?;
     let mut loaded = Vec::new();
@@ -19,8 +21,6 @@ pub fn run(a: EvalArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     }
     let summary = evaluate_many(loaded.iter().map(|(d, gt)| (d, gt)), &options)?;
     if let Some(p) = &a.plot {
-        let inputs: Vec<&std::path::Path> = a.files.iter().map(|f| f.as_path()).collect();
-        check_output(p, &inputs, g.force)?;
         plot_pr_and_stress(&summary, p)?;
     }
     if !crate::output::json_on_stdout(&a.json.json) && !g.quiet {

@@ -8,7 +8,7 @@ use motif_core::procedural;
 use motif_detect::scenes::{Difficulty, SceneKind, SceneOptions, generate_scene, scene_names};
 
 use crate::cli::{DifficultyArg, ExampleArgs, GlobalArgs};
-use crate::output::{bad_input, check_output, write_json};
+use crate::output::{bad_input, check_outputs, write_json};
 
 pub fn run(a: ExampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     if a.list {
@@ -32,19 +32,21 @@ pub fn run(a: ExampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             scene_names().join(", ")
         )));
     }
+    check_outputs(
+        &[Some(&output), a.structure.as_deref(), a.annotation.as_deref(), a.handles.as_deref()],
+        &[],
+        g.force,
+    )?;
     let ex = procedural::generate(&name, g.seed)?;
     let model = Model::from_mesh(&ex.mesh);
     super::write_model(&output, &model, &[], g, &super::write_options(&a.encoding))?;
     if let Some(s) = &a.structure {
-        crate::output::check_output(s, &[&output], g.force)?;
         write_json(s, &ex.structure)?;
     }
     if let Some(p) = &a.annotation {
-        crate::output::check_output(p, &[&output], g.force)?;
         write_json(p, &ex.structure.symmetry)?;
     }
     if let Some(p) = &a.handles {
-        crate::output::check_output(p, &[&output], g.force)?;
         let text = sample_drag(&ex.mesh).to_json();
         motif_core::io::write_atomic(p, |w| w.write_all(text.as_bytes()))?;
     }
@@ -116,18 +118,7 @@ fn run_scene(kind: SceneKind, output: &Path, a: &ExampleArgs, g: &GlobalArgs) ->
         ..Default::default()
     };
     let parts: Vec<&Path> = a.parts.iter().map(|p| p.as_path()).collect();
-    check_output(output, &parts, g.force)?;
-    if let Some(gt) = &a.gt {
-        let mut inputs = parts.clone();
-        inputs.push(output);
-        check_output(gt, &inputs, g.force)?;
-        if gt.as_path() == output {
-            return Err(bad_input(format!(
-                "{}: the ground truth and the cloud need different files",
-                gt.display()
-            )));
-        }
-    }
+    check_outputs(&[Some(output), a.gt.as_deref()], &parts, g.force)?;
     let t = Instant::now();
     let mut scene = generate_scene(kind, &options)?;
     let seconds = t.elapsed().as_secs_f64();

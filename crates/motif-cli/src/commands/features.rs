@@ -8,7 +8,7 @@ use motif_core::spatial::KdTree;
 use serde::Serialize;
 
 use crate::cli::{FrameArg, GlobalArgs, ShotArgs};
-use crate::output::{bad_input, check_output, maybe_json, ms_since};
+use crate::output::{bad_input, maybe_json, ms_since};
 use crate::progress::Bar;
 
 #[derive(Debug, Serialize)]
@@ -25,6 +25,9 @@ struct ShotReport {
 }
 
 pub fn run_shot(a: ShotArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    let inputs: Vec<&std::path::Path> =
+        std::iter::once(a.input.as_path()).chain(a.keypoints.as_deref()).collect();
+    crate::output::check_outputs(&[Some(&a.output), a.json.json.as_deref()], &inputs, g.force)?;
     if let Some(0) = a.every {
         return Err(bad_input("--every 0: use a positive step"));
     }
@@ -58,7 +61,6 @@ pub fn run_shot(a: ShotArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         ..Default::default()
     };
     options.validate()?;
-    check_output(&a.output, &[&a.input], g.force)?;
     let t = Instant::now();
     let tree = KdTree::new(&model.vertices.positions)?;
     let bar = Bar::new(g.quiet);

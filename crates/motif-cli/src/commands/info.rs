@@ -35,6 +35,7 @@ struct InfoReport {
 }
 
 pub fn run(a: InfoArgs, _g: &GlobalArgs) -> anyhow::Result<()> {
+    crate::output::check_outputs(&[a.json.json.as_deref()], &[&a.input], _g.force)?;
     let t = Instant::now();
     let model = super::read_model(&a.input)?;
     let load_ms = ms_since(t);

@@ -92,7 +92,7 @@ pub fn write_model(
     g: &crate::cli::GlobalArgs,
     options: &WriteOptions,
 ) -> anyhow::Result<()> {
-    crate::output::check_output(path, inputs, g.force)?;
+    crate::output::check_outputs(&[Some(path)], inputs, g.force)?;
     io::write(path, model, options).with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }

@@ -5,9 +5,10 @@ use motif_retarget::alpha_expansion::{AlphaExpansionOptions, CycleStrategy, Labe
 use motif_retarget::{Connectivity, generate_grid, solve_grid_file};
 
 use crate::cli::{CyclesArg, GlobalArgs, LabelOrderArg, MrfGenerateArgs, MrfSolveArgs, TiesArg};
-use crate::output::{bad_input, check_output, maybe_json};
+use crate::output::{bad_input, check_outputs, maybe_json};
 
 pub fn solve(a: MrfSolveArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    check_outputs(&[a.json.json.as_deref()], &[&a.problem], g.force)?;
     if a.max_cycles == 0 {
         return Err(bad_input("--max-cycles 0: allow at least one cycle"));
     }
@@ -50,6 +51,7 @@ pub fn solve(a: MrfSolveArgs, g: &GlobalArgs) -> anyhow::Result<()> {
 }
 
 pub fn generate(a: MrfGenerateArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    check_outputs(&[Some(&a.output)], &[], g.force)?;
     let dims: [usize; 3] = match a.dims.as_slice() {
         [x, y, z] if *x > 0 && *y > 0 && *z > 0 => [*x, *y, *z],
         _ => return Err(bad_input("--dims needs three positive sizes, e.g. --dims 20,20,20")),
@@ -60,9 +62,19 @@ pub fn generate(a: MrfGenerateArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     if a.labels < 2 || a.labels > 1024 {
         return Err(bad_input(format!("--labels {}: use 2 to 1024 labels", a.labels)));
     }
+    let sites: usize = dims.iter().product();
+    if sites * a.labels > 50_000_000 {
+        return Err(bad_input(format!(
+            "--dims {}x{}x{} with --labels {}: {} unary costs (more than 5·10⁷); that file would be enormous",
+            dims[0],
+            dims[1],
+            dims[2],
+            a.labels,
+            sites * a.labels
+        )));
+    }
     let connectivity = Connectivity::from_number(u64::from(a.connectivity))
         .ok_or_else(|| bad_input(format!("--connectivity {}: must be 6 or 26", a.connectivity)))?;
-    check_output(&a.output, &[], g.force)?;
     let problem = generate_grid(dims, a.labels, connectivity, g.seed);
     let text = problem.to_json_string();
     motif_core::io::write_atomic(&a.output, |w| w.write_all(text.as_bytes()))?;

@@ -2,6 +2,8 @@
 
 use std::time::Instant;
 
+use anyhow::Context;
+
 use motif_core::TriMesh;
 use motif_core::normals::{NormalsOptions, Orientation, estimate_normals};
 use serde::Serialize;
@@ -21,6 +23,7 @@ struct NormalsReport {
 }
 
 pub fn run(a: NormalsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    crate::output::check_outputs(&[Some(&a.output), a.json.json.as_deref()], &[&a.input], g.force)?;
     let mut model = super::read_model(&a.input)?;
     let t = Instant::now();
     let orientation = match a.orientation {
@@ -34,6 +37,9 @@ pub fn run(a: NormalsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     if a.k < 3 {
         return Err(bad_input(format!("-k {}: a plane fit needs at least 3 neighbours", a.k)));
     }
+    if a.k > 1000 {
+        return Err(bad_input(format!("-k {}: use at most 1000 neighbours (the default is 15)", a.k)));
+    }
     let use_mesh = model.is_mesh() && !a.from_points;
     let normals = if use_mesh {
         TriMesh { positions: model.vertices.positions.clone(), triangles: model.triangles.clone() }
@@ -41,7 +47,8 @@ pub fn run(a: NormalsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     } else {
         let opts = NormalsOptions { neighbours: a.k, orientation, ..Default::default() };
         crate::progress::Bar::new(g.quiet)
-            .spin("normals", || estimate_normals(&model.vertices.positions, &opts))?
+            .spin("normals", || estimate_normals(&model.vertices.positions, &opts))
+            .with_context(|| a.input.display().to_string())?
     };
     model.vertices.normals = Some(normals);
     let ms = ms_since(t);

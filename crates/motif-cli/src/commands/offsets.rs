@@ -5,17 +5,15 @@ use motif_retarget::plot::{plot_offsets, plot_sparsity};
 use motif_retarget::sparsity::{SparsityOptions, collect_inputs, sparsity_study};
 
 use crate::cli::{GlobalArgs, OffsetsArgs, SparsityArgs};
-use crate::output::{bad_input, check_output, maybe_json};
+use crate::output::{bad_input, check_outputs, maybe_json};
 use crate::progress::Bar;
 
 pub fn offsets(a: OffsetsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    check_outputs(&[a.plot.as_deref(), a.json.json.as_deref()], &[&a.mesh], g.force)?;
     if !(a.tau >= 0.0 && a.tau < 2.0) {
         return Err(bad_input(format!("--tau {}: in normalised units, between 0 and 2", a.tau)));
     }
     let mesh = motif_core::io::read_mesh(&a.mesh)?;
-    if let Some(p) = &a.plot {
-        check_output(p, &[&a.mesh], g.force)?;
-    }
     let options = OffsetOptions { tau: a.tau, seed: g.seed, ..Default::default() };
     let bar = Bar::new(g.quiet);
     let an = analyze_offsets(&mesh, &options, &bar)?;
@@ -68,24 +66,34 @@ pub fn offsets(a: OffsetsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
 
 pub fn sparsity(a: SparsityArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let inputs = collect_inputs(&a.inputs)?;
+    let named: Vec<&std::path::Path> =
+        a.inputs.iter().map(|p| p.as_path()).chain(inputs.iter().map(|m| m.path.as_path())).collect();
+    check_outputs(&[a.plot.as_deref(), a.json.json.as_deref()], &named, g.force)?;
     if inputs.is_empty() {
         return Err(bad_input("no meshes found in the given inputs"));
-    }
-    if let Some(p) = &a.plot {
-        check_output(p, &[], g.force)?;
     }
     let options = SparsityOptions::default();
     let bar = Bar::new(g.quiet);
     let report = sparsity_study(&inputs, &options, &bar)?;
+    let failed: Vec<_> = report.models.iter().filter(|m| m.error.is_some()).collect();
+    let skipped = |m: &&motif_retarget::sparsity::ModelSparsity| {
+        let (path, error) = (m.path.display().to_string(), m.error.as_deref().unwrap_or("?"));
+        if error.contains(&path) { error.to_string() } else { format!("{path}: {error}") }
+    };
+    if failed.len() == report.models.len() {
+        let reasons: Vec<String> = failed.iter().map(skipped).collect();
+        return Err(bad_input(format!("no model could be analysed ({})", reasons.join("; "))));
+    }
+    if !g.quiet {
+        for m in &failed {
+            eprintln!("skipped {}", skipped(m));
+        }
+    }
     if let Some(p) = &a.plot {
         plot_sparsity(&report, p)?;
     }
     if !crate::output::json_on_stdout(&a.json.json) && !g.quiet {
         println!("{}", report.table());
-        let failed: Vec<_> = report.models.iter().filter(|m| m.error.is_some()).collect();
-        for m in &failed {
-            println!("skipped {}: {}", m.path.display(), m.error.as_deref().unwrap_or("?"));
-        }
         if let Some(p) = &a.plot {
             eprintln!("wrote {}", p.display());
         }

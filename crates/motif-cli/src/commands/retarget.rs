@@ -15,7 +15,7 @@ use motif_retarget::retarget::{
 use serde::Serialize;
 
 use crate::cli::{AssignmentArg, GlobalArgs, RetargetArgs, RetargetMethodArg};
-use crate::output::{bad_input, check_output, maybe_json, ms_since};
+use crate::output::{bad_input, check_outputs, maybe_json, ms_since};
 use crate::progress::Bar;
 
 #[derive(Debug, Serialize)]
@@ -144,11 +144,8 @@ fn preview_camera(mesh: &TriMesh, principal: &[[f64; 3]]) -> ([f64; 3], [f64; 3]
 
 pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let t0 = Instant::now();
+    check_outputs(&[Some(&a.output), a.preview.as_deref(), a.json.json.as_deref()], &[&a.mesh], g.force)?;
     let mesh = motif_core::io::read_mesh(&a.mesh)?;
-    check_output(&a.output, &[&a.mesh], g.force)?;
-    if let Some(p) = &a.preview {
-        check_output(p, &[&a.mesh, &a.output], g.force)?;
-    }
     let given = a.offsets.as_deref().map(parse_offsets).transpose()?;
     let target = match &a.target_size {
         Some(v) if v.len() == 3 && v.iter().all(|x| *x > 0.0 && x.is_finite()) => Some([v[0], v[1], v[2]]),

@@ -25,7 +25,11 @@ struct SampleReport {
     ms: f64,
 }
 
+/// Most samples without `--force`: 5·10⁷, the detector's limit on resampled points too.
+const MAX_SAMPLES: usize = 50_000_000;
+
 pub fn run(a: SampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    crate::output::check_outputs(&[Some(&a.output), a.json.json.as_deref()], &[&a.input], g.force)?;
     if let Some(r) = a.radius {
         if !(r > 0.0 && r.is_finite()) {
             return Err(bad_input(format!("--radius {r}: must be a positive number")));
@@ -33,6 +37,12 @@ pub fn run(a: SampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     }
     if a.count == Some(0) {
         return Err(bad_input("--count 0: ask for at least one sample"));
+    }
+    if let Some(n) = a.count.filter(|&n| n > MAX_SAMPLES && !g.force) {
+        return Err(bad_input(format!(
+            "--count {n}: more than {MAX_SAMPLES} points (about 48 bytes each; pass --force to sample that \
+             many anyway)"
+        )));
     }
     let model = super::read_model(&a.input)?;
     let poisson = a.poisson || a.radius.is_some();

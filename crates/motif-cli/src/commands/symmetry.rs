@@ -9,7 +9,7 @@ use motif_deform::symmetry_detect::{
 use serde::Serialize;
 
 use crate::cli::{GlobalArgs, SymmetryCheckArgs, SymmetryDetectArgs};
-use crate::output::{bad_input, check_output, maybe_json, ms_since, write_json};
+use crate::output::{bad_input, check_outputs, maybe_json, ms_since, write_json};
 use crate::progress::Bar;
 
 #[derive(Debug, Serialize)]
@@ -22,6 +22,7 @@ struct DetectReport<'a> {
 }
 
 pub fn detect(a: SymmetryDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    check_outputs(&[Some(&a.output), a.json.json.as_deref()], &[&a.mesh], g.force)?;
     if !(a.tolerance > 0.0 && a.tolerance < 0.1) {
         return Err(bad_input(format!(
             "--tolerance {}: use a small positive fraction such as 1e-3",
@@ -32,7 +33,6 @@ pub fn detect(a: SymmetryDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         return Err(bad_input(format!("--max-order {}: use 2 to 360", a.max_order)));
     }
     let mesh = motif_core::io::read_mesh(&a.mesh)?;
-    check_output(&a.output, &[&a.mesh], g.force)?;
     let options = SymmetryDetectOptions {
         tolerance: a.tolerance,
         approximate_tolerance: (10.0 * a.tolerance).max(1e-2),
@@ -89,6 +89,7 @@ pub fn detect(a: SymmetryDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
 }
 
 pub fn check(a: SymmetryCheckArgs, _g: &GlobalArgs) -> anyhow::Result<()> {
+    check_outputs(&[a.json.json.as_deref()], &[&a.mesh, &a.annotation], _g.force)?;
     let mesh = motif_core::io::read_mesh(&a.mesh)?;
     let annotation = motif_deform::annotation::read_annotation(&a.annotation)?;
     let report = motif_deform::residual::check_annotation(&mesh, &annotation)?;
