@@ -38,6 +38,7 @@ const EXPECT: &[(&str, Position, &str)] = &[
     ("gltf_index_out_of_range.gltf", Whole, "is 5, but there are 3 vertices"),
     ("gltf_missing_buffer_file.gltf", Whole, "cannot read"),
     ("gltf_position_accessor_missing.gltf", Whole, "POSITION\"]: Index out of bounds"),
+    ("gltf_version_3.gltf", Whole, "version \"3.0\" is not supported"),
     ("obj_all_degenerate.obj", Line(4), "all 2 faces are degenerate"),
     ("obj_bad_corner.obj", Line(4), "bad face corner"),
     ("obj_index_out_of_range.obj", Line(5), "vertex 4, but the file has only 3"),

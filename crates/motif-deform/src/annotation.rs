@@ -344,7 +344,12 @@ pub(crate) fn check_mesh(mesh: &TriMesh) -> Result<f64> {
         ));
     }
     let d = mesh.diagonal();
-    if !(d > 0.0 && d.is_finite()) {
+    if !d.is_finite() {
+        return Err(DeformError::InvalidMesh(
+            "the mesh's diagonal overflows (coordinates too large to square; rescale it)".into(),
+        ));
+    }
+    if d <= 0.0 {
         return Err(DeformError::InvalidMesh("the mesh has no extent (all vertices coincide)".into()));
     }
     Ok(d)

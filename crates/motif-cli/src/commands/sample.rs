@@ -2,6 +2,7 @@
 
 use std::time::Instant;
 
+use anyhow::Context;
 use motif_core::PointCloud;
 use motif_core::io::Model;
 use motif_core::sampling::{
@@ -46,6 +47,7 @@ pub fn run(a: SampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     }
     let model = super::read_model(&a.input)?;
     let poisson = a.poisson || a.radius.is_some();
+    let in_input = || format!("sampling {}", a.input.display());
     let t = Instant::now();
     let bar = crate::progress::Bar::new(g.quiet);
     let (cloud, method, radius) = bar.spin("sampling", || -> anyhow::Result<_> { Ok(if !poisson {
@@ -56,7 +58,7 @@ pub fn run(a: SampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 a.input.display()
             )));
         }
-        let s = sample_surface(&model.mesh(), n, g.seed)?;
+        let s = sample_surface(&model.mesh(), n, g.seed).with_context(in_input)?;
         let cloud = PointCloud { positions: s.points, normals: Some(s.normals), ..Default::default() };
         (cloud, "area-weighted random", None)
     } else {
@@ -67,11 +69,11 @@ pub fn run(a: SampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         };
         let options = PoissonDiscOptions { spacing, seed: g.seed, ..Default::default() };
         if model.is_mesh() {
-            let s = poisson_disc_surface(&model.mesh(), &Constraints::default(), &options)?;
+            let s = poisson_disc_surface(&model.mesh(), &Constraints::default(), &options).with_context(in_input)?;
             let cloud = PointCloud { positions: s.positions, normals: s.normals, ..Default::default() };
             (cloud, "Poisson-disc on the surface", Some(s.radius))
         } else {
-            let s = poisson_disc_cloud(&model.vertices, &Constraints::default(), &options)?;
+            let s = poisson_disc_cloud(&model.vertices, &Constraints::default(), &options).with_context(in_input)?;
             let idx = s.candidate_indices();
             (model.vertices.select(&idx), "Poisson-disc subset of the cloud", Some(s.radius))
         }

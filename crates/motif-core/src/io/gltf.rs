@@ -61,6 +61,15 @@ pub(super) fn read(bytes: &[u8], path: &Path, format: Format, base_dir: Option<&
     let doc =
         parse_document(container.json).map_err(|e| json_error(path, e, in_glb, container.json_offset))?;
 
+    // glTF 2.0, 5.1: a loader must not load an asset of a major version it does not know.
+    let version = &doc.as_json().asset.version;
+    if version.split('.').next() != Some("2") {
+        return Err(perr(
+            path,
+            Position::Whole,
+            format!("glTF version {version:?} is not supported (Motif reads glTF 2.x)"),
+        ));
+    }
     let mut warnings = Vec::new();
     for ext in doc.extensions_required() {
         if ext == "KHR_draco_mesh_compression" || ext == "EXT_meshopt_compression" {

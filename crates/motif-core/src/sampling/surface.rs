@@ -52,7 +52,13 @@ pub(crate) fn area_cdf(mesh: &TriMesh) -> Result<(Vec<f64>, Vec<Point3>)> {
         acc += a;
         cdf.push(acc);
     }
-    if !(acc > 0.0 && acc.is_finite()) {
+    if !acc.is_finite() {
+        return Err(Error::InvalidInput(
+            "cannot sample a surface whose area overflows (coordinates too large to square; rescale it)"
+                .into(),
+        ));
+    }
+    if acc <= 0.0 {
         return Err(Error::InvalidInput(
             "cannot sample a surface of zero area (no non-degenerate triangle)".into(),
         ));

@@ -163,4 +163,7 @@ put("gltf_index_out_of_range.gltf", json.dumps(
 put("gltf_position_accessor_missing.gltf",
     '{"asset": {"version": "2.0"}, "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}]}\n')
 
+# a major version this reader does not know (glTF 2.0, 5.1: must not be loaded)
+put("gltf_version_3.gltf", '{"asset": {"version": "3.0"}}\n')
+
 print(f"wrote {len(os.listdir(HERE))} files to {HERE}")
