@@ -131,6 +131,23 @@ fn every_output_is_checked_before_any_work() {
 }
 
 #[test]
+fn eval_warns_when_scores_mean_less_than_they_seem() {
+    let d = tmp();
+    let flat = r#"{"scene": "a.ply", "classes": [{"name": "w", "instances": [
+        {"bbox_min": [0, 0, 0], "bbox_max": [1, 1, 0]}, {"bbox_min": [2, 0, 0], "bbox_max": [3, 1, 1]}]}]}"#;
+    std::fs::write(d.path().join("det.json"), flat).unwrap();
+    std::fs::write(d.path().join("gt.json"), r#"{"scene": "b.ply", "classes": []}"#).unwrap();
+    let o = motif(&["eval", "det.json", "gt.json"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.contains("result for scene `a.ply` but gt.json annotates scene `b.ply`"), "{e}");
+    assert!(e.contains("gt.json annotates no instance"), "{e}");
+    assert!(e.contains("det.json: 1 boxes are flat"), "{e}");
+    let o = motif(&["eval", "det.json", "gt.json", "--quiet"], d.path());
+    assert!(stderr(&o).is_empty(), "--quiet hides warnings: {}", stderr(&o));
+}
+
+#[test]
 fn sparsity_with_no_readable_model_fails() {
     let d = tmp();
     std::fs::create_dir(d.path().join("bad")).unwrap();

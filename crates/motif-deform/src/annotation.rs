@@ -43,6 +43,23 @@ pub fn parse_annotation(json: &str) -> Result<SymmetryAnnotation> {
 fn parse_annotation_named(json: &str, what: &str) -> Result<SymmetryAnnotation> {
     let a: SymmetryAnnotation =
         serde_json::from_str(json).map_err(|source| DeformError::Json { what: what.to_string(), source })?;
+    // The two kinds of symmetry are told apart by their fields (untagged); an entry with the
+    // fields of both would be read as a group and its instances dropped without a word.
+    if let Ok(v) = serde_json::from_str::<serde_json::Value>(json) {
+        let entries = v.get("symmetries").and_then(|s| s.as_array()).map_or(&[][..], |s| s.as_slice());
+        for (i, e) in entries.iter().enumerate() {
+            let has = |k: &str| e.get(k).is_some();
+            if has("instances") && (has("generators") || has("region")) {
+                return Err(DeformError::Json {
+                    what: what.to_string(),
+                    source: <serde_json::Error as serde::de::Error>::custom(format!(
+                        "symmetries[{i}] has both `instances` and `region`/`generators`: a symmetry is \
+                         either a group acting on a region or a set of instances; split it in two"
+                    )),
+                });
+            }
+        }
+    }
     if a.format != SYMMETRY_FORMAT {
         return Err(DeformError::WrongFormat {
             what: what.to_string(),
@@ -531,5 +548,9 @@ mod tests {
         let bad = ok.replace("motif_symmetry_v1", "motif_symmetry_v9");
         assert!(matches!(parse_annotation(&bad), Err(DeformError::WrongFormat { .. })));
         assert!(matches!(parse_annotation("{"), Err(DeformError::Json { .. })));
+        // A group with instances too would be read as the group, the instances dropped.
+        let both = ok.replace(r#""region":"all","#, r#""region":"all","instances":[],"#);
+        let e = parse_annotation(&both).unwrap_err();
+        assert!(matches!(e, DeformError::Json { .. }) && e.to_string().contains("symmetries[0]"), "{e}");
     }
 }

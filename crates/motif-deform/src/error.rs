@@ -193,6 +193,17 @@ pub enum DeformError {
         /// Index of the handle.
         handle: usize,
     },
+    /// A handle transform scales, shears or flattens: handles move rigidly (`motif_handles_v1`).
+    #[error(
+        "the transform of handle {handle} is not a rigid motion (its linear part is {deviation:.2e} from \
+         orthogonal; handles move their region rigidly, motif_handles_v1)"
+    )]
+    NonRigidTransform {
+        /// Index of the handle.
+        handle: usize,
+        /// The largest entry of |OᵀO − I| of its linear part O.
+        deviation: f64,
+    },
     /// The solve produced non-finite values (overflow from enormous transforms); nothing was written.
     #[error(
         "the solve produced non-finite displacements (are the handle transforms enormous?); the previous positions are kept"

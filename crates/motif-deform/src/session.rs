@@ -48,6 +48,11 @@ pub enum AnnotationValidation {
     Force,
 }
 
+/// Largest deviation from orthogonality (entries of |OᵀO − I|) a handle transform may have.
+/// Handles move rigidly (`motif_handles_v1`); this is loose enough for rotations composed in
+/// single precision by a page, and catches any real scale, shear or flattening.
+pub const HANDLE_RIGIDITY_TOLERANCE: f64 = 1e-3;
+
 /// Options of a deformation session.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -373,6 +378,10 @@ impl DeformSession {
             let affine = m[3] == [0.0, 0.0, 0.0, 1.0];
             if !affine || m.iter().flatten().any(|x| !x.is_finite()) {
                 return Err(DeformError::InvalidTransform { handle: h });
+            }
+            let deviation = crate::mat3::rigidity_deviation(m);
+            if deviation > HANDLE_RIGIDITY_TOLERANCE {
+                return Err(DeformError::NonRigidTransform { handle: h, deviation });
             }
         }
         let t = Instant::now();

@@ -424,6 +424,16 @@ fn handle_errors_are_specific() {
     let mut projective = IDENTITY4;
     projective[3][0] = 1.0;
     assert!(matches!(s.solve(&[projective]), Err(DeformError::InvalidTransform { handle: 0 })));
+    // Handles move rigidly: a scale, a flattening or a shear is refused.
+    let mut scaled = IDENTITY4;
+    scaled[0][0] = 1e10;
+    let mut flat = IDENTITY4;
+    flat[2][2] = 0.0;
+    let mut shear = IDENTITY4;
+    shear[0][1] = 0.5;
+    for m in [scaled, flat, shear] {
+        assert!(matches!(s.solve(&[m]), Err(DeformError::NonRigidTransform { handle: 0, .. })), "{m:?}");
+    }
     // Enormous transforms: an error, and the previous positions stay (no NaN ever written).
     let before = s.positions().to_vec();
     let huge = translation([1e300, 1e300, 0.0]);

@@ -604,13 +604,35 @@ pub fn export(
                 }),
                 _ => loaded.model.clone(),
             };
+            // The annotation goes beside the model as STEM.sym.json. Its path is checked before
+            // anything is written, so that a refused annotation leaves no model behind. When that
+            // file is the annotation this session read and already holds the same annotation (the
+            // model exported to another format beside it), it is kept as it is.
+            let mut side_to_write = None;
+            if let Some(a) = s.annotation.as_ref().filter(|_| model.is_mesh()) {
+                let side_text = file.with_extension("sym.json").display().to_string();
+                match s.sandbox.resolve_write(&side_text, &s.inputs) {
+                    Ok(side) => {
+                        check_fresh(&side, &side_text, overwrite)?;
+                        side_to_write = Some((side, a));
+                    }
+                    Err(e) => {
+                        let same = s
+                            .sandbox
+                            .resolve_read(&side_text)
+                            .ok()
+                            .filter(|p| s.inputs.contains(p))
+                            .and_then(|p| motif_deform::read_annotation(&p).ok())
+                            .is_some_and(|held| &held == a);
+                        if !same {
+                            return Err(e);
+                        }
+                    }
+                }
+            }
             motif_core::io::write(&file, &model, &WriteOptions::default())?;
             written.push(s.sandbox.display(&file));
-            if let Some(a) = s.annotation.as_ref().filter(|_| model.is_mesh()) {
-                let side = file.with_extension("sym.json");
-                let side_text = side.display().to_string();
-                let side = s.sandbox.resolve_write(&side_text, &s.inputs)?;
-                check_fresh(&side, &side_text, overwrite)?;
+            if let Some((side, a)) = side_to_write {
                 write_json_atomic(&side, a)?;
                 written.push(s.sandbox.display(&side));
             }

@@ -573,6 +573,31 @@ async fn building_the_deformation_session_can_be_cancelled() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_export_whose_annotation_is_refused_writes_nothing() {
+    let s = start().await;
+    let ex = motif_core::procedural::generate("windmill", 1).unwrap();
+    motif_core::io::write_mesh(&s.root.join("w.obj"), &ex.mesh).unwrap();
+    let annotation = serde_json::to_string(&ex.structure.symmetry).unwrap();
+    std::fs::write(s.root.join("w.sym.json"), &annotation).unwrap();
+    std::fs::write(s.root.join("other.sym.json"), "{}").unwrap();
+    let mut ws = connect(&s.url).await;
+    send(&mut ws, json!({"type": "open", "path": "w.obj"})).await;
+    assert!(matches!(next_text(&mut ws).await, ServerMessage::Model { .. }));
+    // Another format beside the model: the annotation read with it already says the same.
+    send(&mut ws, json!({"type": "export", "path": "w.ply"})).await;
+    match next_text(&mut ws).await {
+        ServerMessage::Saved { paths } => assert_eq!(paths, vec!["w.ply".to_string()]),
+        other => panic!("expected saved, got {other:?}"),
+    }
+    assert_eq!(std::fs::read_to_string(s.root.join("w.sym.json")).unwrap(), annotation, "input kept");
+    // The annotation's file exists: refused before the model is written.
+    send(&mut ws, json!({"type": "export", "path": "other.obj"})).await;
+    expect_error(next_text(&mut ws).await, "already exists");
+    assert!(!s.root.join("other.obj").exists(), "no model left behind");
+    assert_eq!(std::fs::read_to_string(s.root.join("other.sym.json")).unwrap(), "{}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn exports_can_be_sent_back_for_download() {
     let s = start().await;
     let mut ws = connect(&s.url).await;

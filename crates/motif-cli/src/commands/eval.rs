@@ -1,5 +1,7 @@
 //! `motif eval`: the evaluation protocol of thesis 5.5.2 on detection results.
 
+use std::path::Path;
+
 use motif_detect::{
     AnnotatedClassTotals, DetectionResult, EvalOptions, EvalSummary, evaluate_many, plot_pr_and_stress,
 };
@@ -17,7 +19,11 @@ pub fn run(a: EvalArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     options.validate()?;
     let mut loaded = Vec::new();
     for pair in a.files.chunks(2) {
-        loaded.push((DetectionResult::read(&pair[0])?, DetectionResult::read(&pair[1])?));
+        let (d, gt) = (DetectionResult::read(&pair[0])?, DetectionResult::read(&pair[1])?);
+        for w in pair_warnings(&d, &gt, &pair[0], &pair[1]) {
+            super::note(g, format!("warning: {w}"));
+        }
+        loaded.push((d, gt));
     }
     let summary = evaluate_many(loaded.iter().map(|(d, gt)| (d, gt)), &options)?;
     if let Some(p) = &a.plot {
@@ -109,4 +115,46 @@ pub(crate) fn print_annotated<'a>(
     println!(
         "(missed: located by no detected box; elsewhere: located, but not by the class the recall credits)"
     );
+}
+
+/// What makes a pair's scores mean less than they seem: files of different scenes, a ground
+/// truth with nothing annotated, boxes that can match nothing (flat, or of a volume that
+/// overflows; see `motif_detect::eval`).
+fn pair_warnings(d: &DetectionResult, gt: &DetectionResult, dp: &Path, gp: &Path) -> Vec<String> {
+    let mut out = Vec::new();
+    if !d.scene.is_empty() && !gt.scene.is_empty() && d.scene != gt.scene {
+        out.push(format!(
+            "{} is a result for scene `{}` but {} annotates scene `{}`",
+            dp.display(),
+            d.scene,
+            gp.display(),
+            gt.scene
+        ));
+    }
+    if gt.classes.iter().all(|c| c.instances.is_empty()) {
+        out.push(format!(
+            "{} annotates no instance: the pair scores P = R = F = 1 if the result is empty too, 0 \
+             otherwise, and counts in the mean",
+            gp.display()
+        ));
+    }
+    for (r, p) in [(d, dp), (gt, gp)] {
+        let degenerate = r
+            .classes
+            .iter()
+            .flat_map(|c| &c.instances)
+            .filter(|i| {
+                let v: f64 = (0..3).map(|k| i.bbox_max[k] - i.bbox_min[k]).product();
+                !(v > 0.0 && v.is_finite())
+            })
+            .count();
+        if degenerate > 0 {
+            out.push(format!(
+                "{}: {degenerate} boxes are flat or so large that their volume overflows; they match \
+                 nothing (give planar parts a small thickness)",
+                p.display()
+            ));
+        }
+    }
+    out
 }

@@ -38,7 +38,7 @@ pub fn run(a: NormalsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         return Err(bad_input(format!("-k {}: a plane fit needs at least 3 neighbours", a.k)));
     }
     if a.k > 1000 {
-        return Err(bad_input(format!("-k {}: use at most 1000 neighbours (the default is 15)", a.k)));
+        return Err(bad_input(format!("-k {}: use at most 1000 neighbours (the default is 16)", a.k)));
     }
     let use_mesh = model.is_mesh() && !a.from_points;
     let normals = if use_mesh {
