@@ -148,6 +148,30 @@ fn eval_warns_when_scores_mean_less_than_they_seem() {
 }
 
 #[test]
+fn zero_normals_are_ignored_with_a_warning() {
+    // A unit sphere of 2000 points whose normals are all zero (a scanner's "unknown").
+    let d = tmp();
+    let n = 2000;
+    let mut ply = format!(
+        "ply\nformat ascii 1.0\nelement vertex {n}\nproperty double x\nproperty double y\nproperty double z\n\
+         property float nx\nproperty float ny\nproperty float nz\nend_header\n"
+    );
+    for i in 0..n {
+        let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+        let r = (1.0 - z * z).sqrt();
+        let phi = i as f64 * 2.399_963_229_728_653;
+        ply.push_str(&format!("{} {} {z} 0 0 0\n", r * phi.cos(), r * phi.sin()));
+    }
+    std::fs::write(d.path().join("sphere.ply"), ply).unwrap();
+    let o = motif(&["curvature", "sphere.ply", "k.ply", "--json"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("2000 of 2000 normals are zero"), "{}", stderr(&o));
+    // Estimated and oriented outwards, the normals give the sphere's curvature +1, not -1.
+    let k1 = json_of(&o)["k1"]["median"].as_f64().unwrap();
+    assert!((k1 - 1.0).abs() < 0.05, "median k1 {k1}");
+}
+
+#[test]
 fn sparsity_with_no_readable_model_fails() {
     let d = tmp();
     std::fs::create_dir(d.path().join("bad")).unwrap();

@@ -396,7 +396,13 @@ pub(crate) fn resolve_symmetry(
     };
     let kind = match &s.kind {
         SymmetryKind::Group { region: r, generators } => {
-            let elements = group_closure(&s.name, generators, diagonal, tolerance)?;
+            // Elements are told apart by their linear parts (in a finite group no two share
+            // one). A translation c − Rc of a rotation about a centre c far from the origin
+            // carries the generators' rounding times |c|, so translations are compared at the
+            // scale of the farthest vertex too: a model placed 10⁷ from the origin closes as it
+            // does at the origin.
+            let reach = mesh.positions.iter().map(|p| dist2(*p, [0.0; 3]).sqrt()).fold(0.0, f64::max);
+            let elements = group_closure(&s.name, generators, diagonal + reach, tolerance)?;
             ResolvedKind::Group {
                 region: region(r, format!("the region of symmetry {:?}", s.name))?,
                 generators: generators.clone(),

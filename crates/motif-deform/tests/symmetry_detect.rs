@@ -449,3 +449,22 @@ fn composed_transforms_stay_in_the_group() {
         }
     }
 }
+
+/// Composing a detected rotation about a centre far from the origin magnifies its rounding in
+/// the translation part; the annotation must still close into its group and pass the check
+/// (10⁶ from the origin failed before translations were compared at the model's reach).
+#[test]
+fn a_detected_annotation_closes_and_checks_far_from_the_origin() {
+    let ex = generate("gear", 1).unwrap();
+    let mut mesh = ex.mesh.clone();
+    for p in &mut mesh.positions {
+        for c in p.iter_mut() {
+            *c += 1e7;
+        }
+    }
+    let d = detect_symmetries(&mesh, &SymmetryDetectOptions::default()).unwrap();
+    assert!(!d.annotation.symmetries.is_empty());
+    let report =
+        motif_deform::residual::check_annotation(&mesh, &d.annotation).expect("the annotation resolves");
+    assert!(report.ok, "{report:?}");
+}

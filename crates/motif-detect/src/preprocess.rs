@@ -284,7 +284,11 @@ pub fn preprocess(cloud: &PointCloud, o: &PreprocessOptions, force: bool) -> Res
             source: Vec::new(),
             features: Vec::new(),
             normals_estimated: cloud.normals.is_none(),
-            warnings: vec![format!("only {} distinct points: nothing to detect", cloud.len())],
+            warnings: vec![if cloud.len() < 10 {
+                format!("only {} points: nothing to detect", cloud.len())
+            } else {
+                format!("the {} points span no extent (all coincide): nothing to detect", cloud.len())
+            }],
         });
     }
     let tree = KdTree::new(&cloud.positions)?;

@@ -949,3 +949,22 @@ fn caps_and_fills_close_the_openings_of_real_models() {
         }
     }
 }
+
+/// A bar 10⁴ long and 1 thick grown along a cell of 2500: seams are welded within a thousandth
+/// of a cell (2.5) but never across the bar's cross-section, whose corners are 1 apart.
+#[test]
+fn a_long_thin_bar_keeps_its_cross_section() {
+    let bar = box_mesh([0.0; 3], [1e4, 1.0, 1.0], [1, 1, 1]).unwrap();
+    let out = retarget(&bar, &[[2500.0, 0.0, 0.0]], [2, 0, 0], &RetargetOptions::default(), &NoProgress)
+        .expect("retargeted");
+    let bb = out.mesh.aabb().unwrap();
+    assert!((bb.max[0] - bb.min[0] - 1.5e4).abs() < 1e-6, "{bb:?}");
+    // A box of 15000 × 1 × 1: four long faces and two ends.
+    assert!((out.mesh.area() - 60_002.0).abs() < 1e-3, "area {}", out.mesh.area());
+    for p in &out.mesh.positions {
+        // On the bar's surface (cuts at voxel faces add vertices along its faces' diagonals).
+        let side = |c: f64| c.abs() < 1e-9 || (c - 1.0).abs() < 1e-9;
+        let inside = |c: f64| (-1e-9..=1.0 + 1e-9).contains(&c);
+        assert!((side(p[1]) || side(p[2])) && inside(p[1]) && inside(p[2]), "vertex {p:?} off the bar");
+    }
+}

@@ -37,8 +37,8 @@ pub fn run(a: AlignArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     if a.iterations == 0 || a.iterations > 10_000 {
         return Err(bad_input(format!("--iterations {}: use 1 to 10000", a.iterations)));
     }
-    let source = super::read_model(&a.source)?;
-    let target = super::read_model(&a.target)?;
+    let source = super::read_model_for_geometry(&a.source, g)?;
+    let target = super::read_model_for_geometry(&a.target, g)?;
     let options = IcpOptions {
         metric: match a.metric {
             IcpMetricArg::PointToPoint => IcpMetric::PointToPoint,

@@ -24,7 +24,7 @@ struct Report {
 pub fn rigid_icp(a: RigidIcpArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let inputs = [a.scene.as_path(), a.gt.as_path()];
     check_outputs(&[Some(&a.output), a.json.json.as_deref()], &inputs, g.force)?;
-    let cloud = super::read_model(&a.scene)?.vertices;
+    let cloud = super::read_model_for_geometry(&a.scene, g)?.vertices;
     if cloud.is_empty() {
         return Err(bad_input(format!("{}: no points", a.scene.display())));
     }

@@ -108,7 +108,7 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         )));
     }
     let bar = Bar::new(g.quiet);
-    let model = bar.spin("reading", || super::read_model(&a.input))?;
+    let model = bar.spin("reading", || super::read_model_for_geometry(&a.input, g))?;
     let scene = a.input.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let t = std::time::Instant::now();
     let detection = if model.is_mesh() {

@@ -1,5 +1,6 @@
 //! `motif offsets` and `motif sparsity`: offset statistics of thesis chapter 4.
 
+use anyhow::Context;
 use motif_retarget::offsets::{OffsetOptions, Repetition, analyze_offsets};
 use motif_retarget::plot::{plot_offsets, plot_sparsity};
 use motif_retarget::sparsity::{SparsityOptions, collect_inputs, sparsity_study};
@@ -16,7 +17,7 @@ pub fn offsets(a: OffsetsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let mesh = motif_core::io::read_mesh(&a.mesh)?;
     let options = OffsetOptions { tau: a.tau, seed: g.seed, ..Default::default() };
     let bar = Bar::new(g.quiet);
-    let an = analyze_offsets(&mesh, &options, &bar)?;
+    let an = analyze_offsets(&mesh, &options, &bar).with_context(|| a.mesh.display().to_string())?;
     if let Some(p) = &a.plot {
         let title = a.mesh.file_name().and_then(|n| n.to_str()).unwrap_or("model");
         plot_offsets(&an, title, p)?;

@@ -3,6 +3,7 @@
 
 use std::time::Instant;
 
+use anyhow::Context;
 use motif_core::TriMesh;
 use motif_core::geometry::{dot, normalize};
 use motif_core::io::{Model, WriteOptions};
@@ -155,8 +156,9 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let bar = Bar::new(g.quiet);
     // Offset detection; its SHOT features are reused by the MRF's pairwise term (thesis 4.2.2).
     let offset_options = OffsetOptions { seed: g.seed, ..Default::default() };
-    let features = prepare_features(&mesh, &offset_options, &bar)?;
-    let analysis = analyze_features(&features, &offset_options, &bar)?;
+    let in_mesh = || a.mesh.display().to_string();
+    let features = prepare_features(&mesh, &offset_options, &bar).with_context(in_mesh)?;
+    let analysis = analyze_features(&features, &offset_options, &bar).with_context(in_mesh)?;
     let analysis_ms = ms_since(t0);
     // Copies are added at the +v end of each offset: orient them so growth goes along +x/+y/+z.
     let principal: Vec<[f64; 3]> = match &given {
@@ -251,8 +253,9 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         fill_holes: !a.no_fill,
         ..Default::default()
     };
-    let mut session = RetargetSession::with_features(&mesh, &features, &principal, &options, &bar)?;
-    let res = session.retarget(steps, &bar)?;
+    let mut session =
+        RetargetSession::with_features(&mesh, &features, &principal, &options, &bar).with_context(in_mesh)?;
+    let res = session.retarget(steps, &bar).with_context(in_mesh)?;
     let alternatives =
         (res.report.infinite_seams > 0).then(|| clean_alternatives(&mut session, steps, principal.len()));
     motif_core::io::write(&a.output, &Model::from_mesh(&res.mesh), &WriteOptions::default())?;

@@ -3,6 +3,7 @@
 
 use std::time::Instant;
 
+use anyhow::Context;
 use motif_deform::symmetry_detect::{
     AnnotationContents, Scope, SymmetryDetectOptions, detect_symmetries_with_progress,
 };
@@ -47,7 +48,8 @@ pub fn detect(a: SymmetryDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     };
     let t = Instant::now();
     let bar = Bar::new(g.quiet);
-    let det = detect_symmetries_with_progress(&mesh, &options, &bar)?;
+    let det = detect_symmetries_with_progress(&mesh, &options, &bar)
+        .with_context(|| a.mesh.display().to_string())?;
     let ms = ms_since(t);
     write_json(&a.output, &det.annotation)?;
     let stdout_json = crate::output::json_on_stdout(&a.json.json);
@@ -92,7 +94,8 @@ pub fn check(a: SymmetryCheckArgs, _g: &GlobalArgs) -> anyhow::Result<()> {
     check_outputs(&[a.json.json.as_deref()], &[&a.mesh, &a.annotation], _g.force)?;
     let mesh = motif_core::io::read_mesh(&a.mesh)?;
     let annotation = motif_deform::annotation::read_annotation(&a.annotation)?;
-    let report = motif_deform::residual::check_annotation(&mesh, &annotation)?;
+    let report = motif_deform::residual::check_annotation(&mesh, &annotation)
+        .with_context(|| format!("{} with {}", a.mesh.display(), a.annotation.display()))?;
     if a.json.json.is_some() {
         maybe_json(&a.json.json, &report)?;
     } else {

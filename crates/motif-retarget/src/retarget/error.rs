@@ -37,6 +37,24 @@ pub enum RetargetError {
         /// How many principal offsets there are.
         offsets: usize,
     },
+    /// The dense baseline's regular grid would keep fewer voxels than the model needs along a
+    /// world axis (its voxels are 0.1 normalised units, not cells, so no bound on the steps along
+    /// the principal offsets can be given).
+    #[error(
+        "the dense baseline's grid of {spacing} (normalised units) would shrink along {axis} from {input_voxels} to {output_voxels} voxel(s); at least {minimum} must remain: ask for fewer negative steps"
+    )]
+    DenseShrinkTooFar {
+        /// The world axis, "x", "y" or "z".
+        axis: &'static str,
+        /// The grid spacing in normalised units.
+        spacing: f64,
+        /// Voxels of the input along this axis.
+        input_voxels: usize,
+        /// Voxels the output would have.
+        output_voxels: i64,
+        /// The smallest number of voxels allowed.
+        minimum: usize,
+    },
     /// Shrinking would leave fewer voxels than the model needs along a direction.
     #[error(
         "steps[{direction}] = {steps} shrinks direction {direction} from {input_voxels} to {output_voxels} cell(s); at least {minimum} must remain (steps >= {min_steps})"

@@ -654,6 +654,15 @@ impl RetargetSession {
             let n_in = self.grid.dims[a];
             let n_out = n_in as i64 + s;
             let minimum = if s < 0 && self.options.boundary == BoundaryMode::Preserve { 2 } else { 1 };
+            if s < 0 && n_out < minimum as i64 && self.options.method == RetargetMethod::Dense {
+                return Err(RetargetError::DenseShrinkTooFar {
+                    axis: ["x", "y", "z"][a],
+                    spacing: self.options.dense_spacing,
+                    input_voxels: n_in,
+                    output_voxels: n_out,
+                    minimum,
+                });
+            }
             if s < 0 && n_out < minimum as i64 {
                 return Err(RetargetError::ShrinkBelowOneCell {
                     direction: a,
@@ -703,7 +712,14 @@ impl RetargetSession {
             .filter(|&a| a < self.lattice.num_active)
             .map(|a| self.lattice.pitch[a])
             .fold(f64::INFINITY, f64::min);
-        let weld_tolerance = self.options.weld_tolerance * min_pitch / self.lattice.normalisation.scale;
+        // A thousandth of a cell, but never more than a twentieth of the model's thinnest
+        // extent: a bar 10⁴ long and 1 thick, grown along a cell of 2500, would otherwise weld
+        // the corners of its cross-section into one point.
+        let thinnest = self.mesh.aabb().map_or(f64::INFINITY, |b| {
+            (0..3).map(|k| b.max[k] - b.min[k]).filter(|&e| e > 0.0).fold(f64::INFINITY, f64::min)
+        });
+        let weld_tolerance = (self.options.weld_tolerance * min_pitch / self.lattice.normalisation.scale)
+            .min(MAX_WELD_SHARE_OF_THINNEST * thinnest);
         let stitched = stitch::stitch(
             &self.mesh,
             &self.tri_voxel,
@@ -784,6 +800,10 @@ impl RetargetSession {
 /// Largest number of (voxel, label) and (input voxel, label difference) table entries a solve may
 /// allocate, whatever `force` says (10⁸: about 1 GB of tables, and hours of graph cuts).
 const MAX_TABLE_ENTRIES: u128 = 100_000_000;
+
+/// The seam-welding tolerance never exceeds this share of the model's thinnest (non-zero)
+/// bounding-box extent, whatever the cell size.
+const MAX_WELD_SHARE_OF_THINNEST: f64 = 0.05;
 
 /// Voxels of the input grid per axis, computed without allocating.
 fn input_dims(lattice: &Lattice, mesh: &TriMesh) -> [usize; 3] {
