@@ -1,6 +1,6 @@
 //! Point clouds: positions with optional normals, colours and named per-point attributes.
 
-use crate::geometry::{Aabb, Point3};
+use crate::geometry::{Aabb, Point3, norm, scale};
 use crate::{Error, Result};
 
 /// Values of a named per-point attribute (e.g. `k1`, `class`, `instance`).
@@ -71,6 +71,23 @@ impl PointCloud {
     /// True when there are no points.
     pub fn is_empty(&self) -> bool {
         self.positions.is_empty()
+    }
+
+    /// Drops the normals when any of them is zero or not finite (readers turn NaN normals into
+    /// zero vectors), so that callers estimate them as for a cloud without normals: a zero normal
+    /// used as a direction flips curvature signs and skews descriptors. Otherwise makes them unit
+    /// length. Returns how many were degenerate (0 when the normals were kept or absent).
+    pub fn drop_degenerate_normals(&mut self) -> usize {
+        let Some(normals) = &mut self.normals else { return 0 };
+        let degenerate = normals.iter().filter(|n| !(norm(**n) > 1e-12 && norm(**n).is_finite())).count();
+        if degenerate > 0 {
+            self.normals = None;
+        } else {
+            for n in normals.iter_mut() {
+                *n = scale(*n, 1.0 / norm(*n));
+            }
+        }
+        degenerate
     }
 
     /// Bounding box, `None` when empty.

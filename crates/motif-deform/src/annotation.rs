@@ -17,7 +17,7 @@
 use std::path::Path;
 
 use motif_core::TriMesh;
-use motif_core::geometry::{IDENTITY4, Mat4, Point3, dist2, mat4_mul, transform_point};
+use motif_core::geometry::{IDENTITY4, Mat4, Point3, dist2, mat4_mul, norm, transform_point};
 use motif_core::procedural::{Region, SYMMETRY_FORMAT, SymmetryAnnotation, SymmetryKind, rigid_inverse};
 use motif_core::spatial::KdTree;
 
@@ -401,7 +401,7 @@ pub(crate) fn resolve_symmetry(
             // carries the generators' rounding times |c|, so translations are compared at the
             // scale of the farthest vertex too: a model placed 10⁷ from the origin closes as it
             // does at the origin.
-            let reach = mesh.positions.iter().map(|p| dist2(*p, [0.0; 3]).sqrt()).fold(0.0, f64::max);
+            let reach = mesh.positions.iter().map(|p| norm(*p)).fold(0.0, f64::max);
             let elements = group_closure(&s.name, generators, diagonal + reach, tolerance)?;
             ResolvedKind::Group {
                 region: region(r, format!("the region of symmetry {:?}", s.name))?,

@@ -822,7 +822,10 @@ pub fn detect_building_blocks(
         }
         Ok(d.result)
     } else {
-        Ok(motif_detect::detect(&model.vertices, name, &options, progress, false)?.result)
+        // Zero normals (NaN ones read as zero) are estimated, as for a cloud without normals.
+        let mut cloud = model.vertices.clone();
+        cloud.drop_degenerate_normals();
+        Ok(motif_detect::detect(&cloud, name, &options, progress, false)?.result)
     }
 }
 

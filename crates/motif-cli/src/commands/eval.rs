@@ -144,7 +144,7 @@ fn pair_warnings(d: &DetectionResult, gt: &DetectionResult, dp: &Path, gp: &Path
             .iter()
             .flat_map(|c| &c.instances)
             .filter(|i| {
-                let v: f64 = (0..3).map(|k| i.bbox_max[k] - i.bbox_min[k]).product();
+                let v = motif_core::geometry::Aabb { min: i.bbox_min, max: i.bbox_max }.volume();
                 !(v > 0.0 && v.is_finite())
             })
             .count();

@@ -70,40 +70,23 @@ pub fn read_model(path: &Path) -> anyhow::Result<Model> {
 }
 
 /// Reads a model for a command that computes with it: the reader's warnings are shown (unless
-/// quiet), and normals that say nothing are dropped so that the command estimates them as it does
-/// for a file without normals. A zero normal (the reader turns NaN and infinite ones into zero)
-/// would otherwise act as a direction: curvature signs flipped, descriptors and detections built
-/// on it. Normals of other lengths are made unit length.
+/// quiet), and zero normals make the command estimate them as for a file without normals
+/// ([`motif_core::PointCloud::drop_degenerate_normals`]), with a warning.
 pub fn read_model_for_geometry(path: &Path, g: &crate::cli::GlobalArgs) -> anyhow::Result<Model> {
     let mut model = io::read(path)?;
     for w in &model.warnings {
         note(g, format!("warning: {}: {w}", path.display()));
     }
-    if let Some(normals) = &mut model.vertices.normals {
-        let zero = normals
-            .iter()
-            .filter(|n| {
-                let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-                !(l > 1e-12 && l.is_finite())
-            })
-            .count();
-        if zero > 0 {
-            note(
-                g,
-                format!(
-                    "warning: {}: {zero} of {} normals are zero (or were not finite); the file's normals are \
-                     ignored",
-                    path.display(),
-                    normals.len()
-                ),
-            );
-            model.vertices.normals = None;
-        } else {
-            for n in normals.iter_mut() {
-                let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-                *n = [n[0] / l, n[1] / l, n[2] / l];
-            }
-        }
+    let count = model.vertices.len();
+    let zero = model.vertices.drop_degenerate_normals();
+    if zero > 0 {
+        note(
+            g,
+            format!(
+                "warning: {}: {zero} of {count} normals are zero (or were not finite); the file's normals are ignored",
+                path.display()
+            ),
+        );
     }
     Ok(model)
 }
