@@ -172,6 +172,42 @@ fn zero_normals_are_ignored_with_a_warning() {
 }
 
 #[test]
+fn normals_of_a_scan_with_returns_at_the_origin_warn_and_keep_every_point() {
+    // A sphere of 2000 points plus 500 invalid returns at the origin: every point keeps a normal,
+    // the sphere's point outward, and the heap's are reported as arbitrary.
+    let d = tmp();
+    let n = 2000;
+    let heap = 500;
+    let mut ply = format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty double x\nproperty double y\nproperty double z\nend_header\n",
+        n + heap
+    );
+    for i in 0..n {
+        let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+        let r = (1.0 - z * z).sqrt();
+        let phi = i as f64 * 2.399_963_229_728_653;
+        ply.push_str(&format!("{} {} {}\n", 5.0 + r * phi.cos(), r * phi.sin(), z));
+    }
+    for _ in 0..heap {
+        ply.push_str("0 0 0\n");
+    }
+    std::fs::write(d.path().join("scan.ply"), ply).unwrap();
+    let o = motif(&["normals", "scan.ply", "n.ply", "--json", "n.json"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("500 of 2500 points have 16 nearest neighbours that coincide"),
+        "{}",
+        stderr(&o)
+    );
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.path().join("n.json")).unwrap()).unwrap();
+    assert_eq!(r["undetermined"], 500);
+    let o = motif(&["info", "n.ply", "--json"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(json_of(&o)["vertices"], 2500, "{}", stdout(&o));
+}
+
+#[test]
 fn sparsity_with_no_readable_model_fails() {
     let d = tmp();
     std::fs::create_dir(d.path().join("bad")).unwrap();

@@ -30,6 +30,17 @@ fn kdtree(c: &mut Criterion) {
     // ~30 neighbours per query at this density.
     g.bench_function("radius0.02_100k_queries", |b| b.iter(|| tree.within_batch(black_box(&pts), 0.02)));
     g.finish();
+
+    // A scan whose invalid returns all sit at the origin: half the points coincide. Before
+    // coincident points were stored once, these queries were quadratic in the heap's size.
+    let mut scan = torus_cloud(50_000);
+    scan.extend(std::iter::repeat_n([0.0, 0.0, 0.0], 50_000));
+    let tree = KdTree::new(&scan).unwrap();
+    let mut g = c.benchmark_group("kdtree_100k_half_coincident");
+    g.sample_size(10);
+    g.bench_function("build", |b| b.iter(|| KdTree::new(black_box(&scan)).unwrap()));
+    g.bench_function("knn16_100k_queries", |b| b.iter(|| tree.knn_batch(black_box(&scan), 16)));
+    g.finish();
 }
 
 fn descriptors(c: &mut Criterion) {

@@ -114,6 +114,27 @@ impl NormalsOptions {
 /// `points` is `#P × 3`; the result is `#P × 3`, unit length. Fails on fewer than 3 points,
 /// non-finite coordinates or invalid options.
 pub fn estimate_normals(points: &[Point3], options: &NormalsOptions) -> Result<Vec<Point3>> {
+    Ok(estimate_normals_detailed(points, options)?.normals)
+}
+
+/// Estimated normals and how many of them the data did not determine.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EstimatedNormals {
+    /// One unit normal per point, as [`estimate_normals`] returns them.
+    pub normals: Vec<Point3>,
+    /// Points whose neighbourhood spans no plane: its `k` neighbours coincide or lie on one line
+    /// (the covariance's middle eigenvalue is below [`UNDETERMINED_RATIO`] times the largest).
+    /// Their normal is an arbitrary direction perpendicular to that line (or any direction).
+    pub undetermined: usize,
+}
+
+/// Middle-to-largest covariance eigenvalue ratio below which a neighbourhood counts as a line or
+/// a point, not a surface patch ([`EstimatedNormals::undetermined`]). 1e-10 is a relative spread
+/// of 1e-5 across the line: far below any scan's noise, far above rounding.
+pub const UNDETERMINED_RATIO: f64 = 1e-10;
+
+/// [`estimate_normals`], also counting the normals the data did not determine.
+pub fn estimate_normals_detailed(points: &[Point3], options: &NormalsOptions) -> Result<EstimatedNormals> {
     options.validate()?;
     if points.len() < 3 {
         return Err(Error::InvalidInput(format!(
@@ -122,7 +143,7 @@ pub fn estimate_normals(points: &[Point3], options: &NormalsOptions) -> Result<V
         )));
     }
     let tree = KdTree::new(points)?;
-    estimate_normals_with_tree(points, &tree, options)
+    normals_with_tree(points, &tree, options)
 }
 
 /// [`estimate_normals`] with a kd-tree the caller already built over `points`.
@@ -133,6 +154,10 @@ pub fn estimate_normals_with_tree(
     tree: &KdTree,
     options: &NormalsOptions,
 ) -> Result<Vec<Point3>> {
+    Ok(normals_with_tree(points, tree, options)?.normals)
+}
+
+fn normals_with_tree(points: &[Point3], tree: &KdTree, options: &NormalsOptions) -> Result<EstimatedNormals> {
     options.validate()?;
     if points.len() < 3 {
         return Err(Error::InvalidInput(format!(
@@ -151,9 +176,15 @@ pub fn estimate_normals_with_tree(
     let graph = KnnGraph::build(points, tree, k);
 
     let mut normals = vec![[0.0; 3]; points.len()];
-    normals.par_iter_mut().enumerate().for_each(|(i, n)| {
-        *n = pca_normal(points, points[i], graph.neighbours(i));
-    });
+    let undetermined: usize = normals
+        .par_iter_mut()
+        .enumerate()
+        .map(|(i, n)| {
+            let determined;
+            (*n, determined) = pca_normal(points, points[i], graph.neighbours(i));
+            usize::from(!determined)
+        })
+        .sum();
 
     match options.orientation {
         Orientation::Unoriented => {}
@@ -166,7 +197,7 @@ pub fn estimate_normals_with_tree(
         }
         Orientation::Consistent => orient_consistently(points, &graph, options.graph_weight, &mut normals),
     }
-    Ok(normals)
+    Ok(EstimatedNormals { normals, undetermined })
 }
 
 /// The kNN lists of every point, flattened (`k` entries per point, the point itself included), and
@@ -199,10 +230,12 @@ impl KnnGraph {
 }
 
 /// Unit normal of the least-squares plane through `nbrs` (covariance about their centroid,
-/// accumulated relative to `origin` to avoid cancellation far from the coordinate origin).
-fn pca_normal(points: &[Point3], origin: Point3, nbrs: &[u32]) -> Point3 {
+/// accumulated relative to `origin` to avoid cancellation far from the coordinate origin), and
+/// whether the neighbours span a plane at all (see [`UNDETERMINED_RATIO`]).
+fn pca_normal(points: &[Point3], origin: Point3, nbrs: &[u32]) -> (Point3, bool) {
     let cov = covariance(nbrs.iter().map(|&j| sub(points[j as usize], origin)));
-    smallest_eigenvector(&cov)
+    let (values, vectors) = sorted_eigen(&cov);
+    (vectors[0], values[2] > 0.0 && values[1] > UNDETERMINED_RATIO * values[2])
 }
 
 /// Covariance (not divided by the count) of a set of vectors about their mean.
@@ -237,6 +270,11 @@ pub(crate) fn covariance(vs: impl Iterator<Item = Point3> + Clone) -> Matrix3<f6
 /// Eigenvectors of a symmetric 3×3 matrix sorted by ascending eigenvalue, as unit columns, with
 /// the third recomputed as the cross product of the first two so the frame is right-handed.
 pub(crate) fn sorted_eigenvectors(cov: &Matrix3<f64>) -> [Point3; 3] {
+    sorted_eigen(cov).1
+}
+
+/// [`sorted_eigenvectors`] with their eigenvalues, ascending.
+fn sorted_eigen(cov: &Matrix3<f64>) -> ([f64; 3], [Point3; 3]) {
     let eig = SymmetricEigen::new(*cov);
     let mut order = [0usize, 1, 2];
     order.sort_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]));
@@ -244,7 +282,8 @@ pub(crate) fn sorted_eigenvectors(cov: &Matrix3<f64>) -> [Point3; 3] {
         let c = eig.eigenvectors.column(order[i]);
         crate::geometry::normalize([c[0], c[1], c[2]])
     };
-    match (col(0), col(1)) {
+    let values = order.map(|i| eig.eigenvalues[i]);
+    let vectors = match (col(0), col(1)) {
         (Some(a), Some(b)) => {
             // Re-orthogonalise b against a in case the solver returned a slightly skewed pair.
             let b = crate::geometry::normalize(sub(b, scale(a, dot(a, b))))
@@ -252,11 +291,8 @@ pub(crate) fn sorted_eigenvectors(cov: &Matrix3<f64>) -> [Point3; 3] {
             [a, b, crate::geometry::cross(a, b)]
         }
         _ => [[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
-    }
-}
-
-fn smallest_eigenvector(cov: &Matrix3<f64>) -> Point3 {
-    sorted_eigenvectors(cov)[0]
+    };
+    (values, vectors)
 }
 
 /// Hoppe-style orientation: MST over the symmetrised kNN graph (Prim, weight `1 − |nᵢ·nⱼ|`),
@@ -402,6 +438,24 @@ mod tests {
             // An open flat patch falls back to the dominant-axis rule: +z.
             assert!((v[2] - 1.0).abs() < 1e-9, "{v:?}");
         }
+    }
+
+    #[test]
+    fn neighbourhoods_without_a_plane_are_counted() {
+        // A 20×20 grid (determined), a heap of 30 coincident points and a line of 40 points far
+        // away: the heap's and the line's normals are arbitrary, and counted as such.
+        let mut pts: Vec<Point3> =
+            (0..400).map(|i| [(i % 20) as f64 * 0.1, (i / 20) as f64 * 0.1, 0.0]).collect();
+        pts.extend(std::iter::repeat_n([50.0, 50.0, 50.0], 30));
+        pts.extend((0..40).map(|i| [-50.0 + 0.1 * i as f64, -50.0, 7.0]));
+        let est = estimate_normals_detailed(&pts, &NormalsOptions::default()).unwrap();
+        assert_eq!(est.undetermined, 70);
+        assert_eq!(est.normals.len(), pts.len());
+        // A slightly noisy plane is determined everywhere.
+        let noisy: Vec<Point3> = (0..400)
+            .map(|i| [(i % 20) as f64 * 0.1, (i / 20) as f64 * 0.1, 1e-4 * ((i * 7919) % 13) as f64])
+            .collect();
+        assert_eq!(estimate_normals_detailed(&noisy, &NormalsOptions::default()).unwrap().undetermined, 0);
     }
 
     #[test]

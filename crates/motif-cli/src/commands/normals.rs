@@ -5,7 +5,7 @@ use std::time::Instant;
 use anyhow::Context;
 
 use motif_core::TriMesh;
-use motif_core::normals::{NormalsOptions, Orientation, estimate_normals};
+use motif_core::normals::{NormalsOptions, Orientation, estimate_normals_detailed};
 use serde::Serialize;
 
 use crate::cli::{GlobalArgs, NormalsArgs, OrientationArg};
@@ -19,6 +19,8 @@ struct NormalsReport {
     method: &'static str,
     neighbours: usize,
     orientation: String,
+    /// Points whose neighbours coincide or lie on one line: their normal is arbitrary.
+    undetermined: usize,
     ms: f64,
 }
 
@@ -41,14 +43,30 @@ pub fn run(a: NormalsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         return Err(bad_input(format!("-k {}: use at most 1000 neighbours (the default is 16)", a.k)));
     }
     let use_mesh = model.is_mesh() && !a.from_points;
-    let normals = if use_mesh {
-        TriMesh { positions: model.vertices.positions.clone(), triangles: model.triangles.clone() }
-            .vertex_normals()
+    let (normals, undetermined) = if use_mesh {
+        let normals =
+            TriMesh { positions: model.vertices.positions.clone(), triangles: model.triangles.clone() }
+                .vertex_normals();
+        (normals, 0)
     } else {
         let opts = NormalsOptions { neighbours: a.k, orientation, ..Default::default() };
-        crate::progress::Bar::new(g.quiet)
-            .spin("normals", || estimate_normals(&model.vertices.positions, &opts))
-            .with_context(|| a.input.display().to_string())?
+        let est = crate::progress::Bar::new(g.quiet)
+            .spin("normals", || estimate_normals_detailed(&model.vertices.positions, &opts))
+            .with_context(|| a.input.display().to_string())?;
+        if est.undetermined > 0 {
+            super::note(
+                g,
+                format!(
+                    "warning: {}: {} of {} points have {} nearest neighbours that coincide or lie on one line; \
+                 their normals are arbitrary (duplicate points, or a scan line: try a larger -k)",
+                    a.input.display(),
+                    est.undetermined,
+                    model.vertices.len(),
+                    a.k
+                ),
+            );
+        }
+        (est.normals, est.undetermined)
     };
     model.vertices.normals = Some(normals);
     let ms = ms_since(t);
@@ -60,6 +78,7 @@ pub fn run(a: NormalsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         method: if use_mesh { "area-weighted face normals" } else { "PCA over k neighbours" },
         neighbours: a.k,
         orientation: format!("{orientation:?}"),
+        undetermined,
         ms,
     };
     if !crate::output::json_on_stdout(&a.json.json) {
