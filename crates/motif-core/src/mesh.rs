@@ -179,6 +179,96 @@ impl TriMesh {
         stats
     }
 
+    /// Flips the patches of triangles that run against the rest of their surface, so that every
+    /// edge shared by exactly two triangles is used once each way where the surface allows it.
+    ///
+    /// Triangles are joined across edges of exactly two triangles (edges of one triangle or of
+    /// three or more join nothing); each group so joined is made consistent by breadth-first
+    /// propagation, and of its two consistent orientations the one that flips the smaller area
+    /// is kept, so a consistent group is never touched and a small patch turned the wrong way
+    /// inside a large surface is turned back. A group that cannot be oriented (a Möbius strip)
+    /// is left as it is. Returns the number of triangles flipped. The repair libigl's
+    /// `bfs_orient` and trimesh's `fix_winding` make; Motif runs it on meshes it builds itself.
+    pub fn orient_patches(&mut self) -> usize {
+        let n = self.triangles.len();
+        let keys = edges_by_key(&self.triangles, self.positions.len());
+        // For each manifold edge: its two triangles and whether they already agree on it.
+        let mut start = vec![0u32; n + 1];
+        let mut pairs: Vec<(u32, u32, bool)> = Vec::new();
+        for run in keys.chunk_by(|a, b| a.0 == b.0) {
+            if run.len() != 2 || (run[0].0 >> 32) == (run[0].0 & 0xffff_ffff) {
+                continue;
+            }
+            let from = |&(_, f, k): &(u64, u32, u8)| self.triangles[f as usize][k as usize];
+            let agree = from(&run[0]) != from(&run[1]);
+            let (f, g) = (run[0].1, run[1].1);
+            if f != g {
+                pairs.push((f, g, agree));
+                start[f as usize + 1] += 1;
+                start[g as usize + 1] += 1;
+            }
+        }
+        for i in 0..n {
+            start[i + 1] += start[i];
+        }
+        let mut fill = start.clone();
+        let mut adjacency = vec![(0u32, false); start[n] as usize];
+        for &(f, g, agree) in &pairs {
+            adjacency[fill[f as usize] as usize] = (g, agree);
+            fill[f as usize] += 1;
+            adjacency[fill[g as usize] as usize] = (f, agree);
+            fill[g as usize] += 1;
+        }
+        let areas = self.face_areas();
+        let mut flip: Vec<Option<bool>> = vec![None; n];
+        let mut flipped = 0;
+        let mut group: Vec<u32> = Vec::new();
+        let mut queue = std::collections::VecDeque::new();
+        for seed in 0..n {
+            if flip[seed].is_some() {
+                continue;
+            }
+            group.clear();
+            flip[seed] = Some(false);
+            queue.push_back(seed as u32);
+            let mut orientable = true;
+            while let Some(f) = queue.pop_front() {
+                group.push(f);
+                let here = flip[f as usize] == Some(true);
+                for &(g, agree) in &adjacency[start[f as usize] as usize..start[f as usize + 1] as usize] {
+                    // Agreeing neighbours keep the same flip; disagreeing ones take the other.
+                    let want = here ^ !agree;
+                    match flip[g as usize] {
+                        None => {
+                            flip[g as usize] = Some(want);
+                            queue.push_back(g);
+                        }
+                        Some(have) => orientable &= have == want,
+                    }
+                }
+            }
+            if !orientable {
+                continue;
+            }
+            let (mut keep, mut turn) = (0.0, 0.0);
+            for &f in &group {
+                if flip[f as usize] == Some(true) {
+                    turn += areas[f as usize]
+                } else {
+                    keep += areas[f as usize]
+                }
+            }
+            let turn_marked = turn <= keep;
+            for &f in &group {
+                if (flip[f as usize] == Some(true)) == turn_marked {
+                    self.triangles[f as usize].swap(1, 2);
+                    flipped += 1;
+                }
+            }
+        }
+        flipped
+    }
+
     /// Connected components through shared vertices (union–find).
     pub fn components(&self) -> Components {
         let n = self.positions.len();
@@ -454,6 +544,56 @@ mod tests {
             vec![[0, 1, 2], [0, 4, 3]],
         )
         .unwrap()
+    }
+
+    #[test]
+    fn flipped_patches_are_turned_back() {
+        let cube = crate::procedural::box_mesh([0.0; 3], [1.0, 2.0, 3.0], [4, 4, 4]).unwrap();
+        assert_eq!(cube.edge_stats().misoriented, 0);
+        let volume = cube.signed_volume();
+        // A consistent surface is left alone.
+        let mut m = cube.clone();
+        assert_eq!(m.orient_patches(), 0);
+        assert_eq!(m.triangles, cube.triangles);
+        // A patch of 7 triangles turned over inside it is turned back, and nothing else moves.
+        let mut m = cube.clone();
+        for f in [3usize, 4, 5, 6, 7, 8, 9] {
+            m.triangles[f].swap(0, 1);
+        }
+        assert!(m.edge_stats().misoriented > 0);
+        assert_eq!(m.orient_patches(), 7);
+        assert_eq!(m.edge_stats().misoriented, 0);
+        assert!((m.signed_volume() - volume).abs() < 1e-12);
+        // Turned over as a whole, a surface stays as it is (it is consistent, only inside out).
+        let mut m = cube.clone();
+        for t in &mut m.triangles {
+            t.swap(1, 2);
+        }
+        assert_eq!(m.orient_patches(), 0);
+        // A Möbius strip cannot be oriented: left untouched.
+        let k = 12;
+        let mut positions = Vec::new();
+        for i in 0..k {
+            let u = std::f64::consts::TAU * i as f64 / k as f64;
+            for w in [-0.2, 0.2] {
+                let (c, s) = ((u / 2.0).cos(), (u / 2.0).sin());
+                positions.push([(1.0 + w * c) * u.cos(), (1.0 + w * c) * u.sin(), w * s]);
+            }
+        }
+        let mut triangles = Vec::new();
+        for i in 0..k as u32 {
+            let (a, b) = (2 * i, 2 * i + 1);
+            // The last quad joins the first with its sides swapped: the half twist.
+            let (c, d) = if i + 1 == k as u32 { (1, 0) } else { (2 * i + 2, 2 * i + 3) };
+            triangles.push([a, c, b]);
+            triangles.push([b, c, d]);
+        }
+        let mut strip = TriMesh::new(positions, triangles).unwrap();
+        let before = strip.triangles.clone();
+        assert!(strip.edge_stats().misoriented > 0, "no orientation of a Möbius strip is consistent");
+        assert_eq!(strip.edge_stats().boundary, 2 * k, "one boundary running twice around");
+        assert_eq!(strip.orient_patches(), 0);
+        assert_eq!(strip.triangles, before);
     }
 
     #[test]

@@ -294,6 +294,12 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 input_boundary
             );
         }
+        if r.reoriented_triangles > 0 {
+            println!(
+                "orientation: {} triangles turned to agree with the surface around them",
+                r.reoriented_triangles
+            );
+        }
         if r.infinite_seams > 0 {
             let dims = principal.len().clamp(1, 3);
             let others = match alternatives.as_deref() {

@@ -407,6 +407,10 @@ pub struct RetargetReport {
     /// Triangles those fills added.
     #[serde(default)]
     pub fill_triangles: usize,
+    /// Triangles turned back after capping and filling because a patch of them ran against the
+    /// rest of the surface ([`motif_core::TriMesh::orient_patches`]).
+    #[serde(default)]
+    pub reoriented_triangles: usize,
     /// `normalised_from_model`, row-major 4×4.
     pub normalised_from_model: Mat4,
     /// `canonical_from_normalised`, row-major 3×3 (identity for the dense baseline).
@@ -785,6 +789,7 @@ impl RetargetSession {
             winding_cap_planes: stitched.capped.winding_planes,
             filled_holes: stitched.filled.filled,
             fill_triangles: stitched.filled.triangles,
+            reoriented_triangles: stitched.reoriented,
             normalised_from_model: canonical::normalised_from_model(&self.lattice.normalisation),
             canonical_from_normalised: self.lattice.canonical_from_normalised,
         };
