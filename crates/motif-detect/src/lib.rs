@@ -40,6 +40,7 @@ pub mod instances;
 pub mod pipeline;
 pub mod plot;
 pub mod preprocess;
+pub mod refine;
 pub mod rigid_icp;
 pub mod scenes;
 pub mod segment_classes;

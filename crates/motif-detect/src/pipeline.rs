@@ -22,6 +22,7 @@ use crate::grid::SpatialHash;
 use crate::hoc::{HocOptions, compute};
 use crate::instances::{Class, ClusteringReport, InstanceOptions, detect_instances};
 use crate::preprocess::{Feature, PreprocessOptions, Preprocessed, preprocess};
+use crate::refine::{RefineOptions, RefineReport, VertexSnapReport, refine_on_vertices, refine_transforms};
 
 /// Most EM iterations [`DetectOptions::validate`] accepts: the thesis runs 5 (5.4), and on
 /// noisy scans the memberships keep changing by more than the 1% stopping rule, so an absurd
@@ -81,6 +82,8 @@ pub struct DetectOptions {
     pub mesh_samples: usize,
     /// Seed of every random choice (resampling order, k-means++, mesh sampling).
     pub seed: u64,
+    /// Refining the transforms between instances by ICP ([`crate::refine`]; not in the thesis).
+    pub refine: RefineOptions,
 }
 
 impl Default for DetectOptions {
@@ -98,6 +101,7 @@ impl Default for DetectOptions {
             min_features: 40,
             mesh_samples: 300_000,
             seed: 0,
+            refine: RefineOptions::default(),
         }
     }
 }
@@ -277,6 +281,12 @@ pub struct DetectReport {
     pub class_merges: usize,
     /// Instance extents and classes regrouped by size ([`crate::extent`]).
     pub extent: ExtentReport,
+    /// Instance transforms refined by ICP ([`crate::refine`]).
+    #[serde(default)]
+    pub refine: RefineReport,
+    /// For a mesh input, instance transforms snapped to its vertices ([`crate::refine`]).
+    #[serde(default)]
+    pub vertex_snap: VertexSnapReport,
     /// Seconds per stage: preprocess, descriptors, dictionary, EM, instances, output.
     pub seconds: StageSeconds,
     /// Warnings, in words.
@@ -296,7 +306,7 @@ pub struct StageSeconds {
     pub em: f64,
     /// Clustering and star model (all rounds).
     pub instances: f64,
-    /// Point labels and boxes.
+    /// Point labels and boxes, and the transforms refined ([`crate::refine`]).
     pub output: f64,
     /// Everything.
     pub total: f64,
@@ -356,6 +366,7 @@ pub fn detect_mesh(
     let mut cloud = PointCloud::from_positions(s.points);
     cloud.normals = Some(s.normals);
     let mut d = detect(&cloud, scene, o, progress, false)?;
+    d.report.vertex_snap = refine_on_vertices(&mut d.result, &mesh.positions);
     d.samples = Some(cloud);
     Ok(d)
 }
@@ -491,8 +502,9 @@ pub fn detect(
     }
 
     let t5 = Instant::now();
-    progress.start("labels and boxes", 0);
-    let (result, labels) = to_result(cloud, scene, &classes)?;
+    progress.start("labels, boxes and transforms", 0);
+    let (mut result, labels) = to_result(cloud, scene, &classes)?;
+    report.refine = refine_transforms(&mut result, cloud, &o.refine);
     progress.finish();
     report.seconds.output = t5.elapsed().as_secs_f64();
     report.instances_per_class = classes.iter().map(|c| c.instances.len()).collect();
