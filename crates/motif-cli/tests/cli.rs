@@ -651,6 +651,27 @@ fn retarget_adds_shelf_cells_and_refuses_models_without_repetition() {
     let o =
         motif(&["retarget", "gear.obj", "--target-size", "3,3,1", "--plain-resize", "-o", "g.obj"], d.path());
     assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("as asked") && !stderr(&o).contains("flat along"), "{}", stderr(&o));
+    // A flat disk cannot be given a thickness: said so, not "as asked".
+    let mut disk = String::from("OFF\n41 40 0\n0 0 0\n");
+    for i in 0..40 {
+        let a = std::f64::consts::TAU * i as f64 / 40.0;
+        disk.push_str(&format!("{} {} 0\n", a.cos(), a.sin()));
+    }
+    for i in 0..40 {
+        disk.push_str(&format!("3 0 {} {}\n", 1 + i, 1 + (i + 1) % 40));
+    }
+    std::fs::write(d.path().join("disk.off"), disk).unwrap();
+    let o = motif(
+        &["retarget", "disk.off", "--target-size", "3,3,1", "--plain-resize", "-o", "d2.off"],
+        d.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("flat along z (asked 1)") && !stderr(&o).contains("as asked"),
+        "{}",
+        stderr(&o)
+    );
     // Shrinking below one cell is refused.
     let o = motif(&["retarget", "shelf.obj", "--steps", "-9,0", "-o", "x.obj"], d.path());
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));

@@ -222,6 +222,18 @@ pub fn rotation_about_axis(axis: Point3, angle: f64) -> [[f64; 3]; 3] {
     ]
 }
 
+/// `x` as text with `decimals` decimals, in scientific notation instead when the model's size
+/// `scale` is below 10⁻³ or above 10⁶, where fixed decimals would print a model 10⁻⁹ across as
+/// zeros (or one 10⁹ across with twelve digits before the point).
+pub fn format_length(x: f64, scale: f64, decimals: usize) -> String {
+    let scale = scale.abs();
+    if scale == 0.0 || (1e-3..=1e6).contains(&scale) || !scale.is_finite() {
+        format!("{x:.decimals$}")
+    } else {
+        format!("{x:.decimals$e}")
+    }
+}
+
 /// Any unit vector orthogonal to the unit vector `n` (stable for every direction).
 pub fn any_orthonormal(n: Point3) -> Point3 {
     let a = if n[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
@@ -280,6 +292,14 @@ pub fn closest_point_on_triangle(p: Point3, a: Point3, b: Point3, c: Point3) -> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn lengths_keep_their_digits_at_every_scale() {
+        assert_eq!(format_length(0.42, 1.0, 4), "0.4200");
+        assert_eq!(format_length(4.2e-10, 1e-9, 4), "4.2000e-10");
+        assert_eq!(format_length(4.2e8, 1e9, 2), "4.20e8");
+        assert_eq!(format_length(0.0, 0.0, 3), "0.000");
+    }
 
     #[test]
     fn rotation_is_orthogonal_and_turns_x_to_y() {

@@ -1,5 +1,6 @@
 //! `motif info`: what a file holds.
 
+use motif_core::geometry::format_length;
 use std::time::Instant;
 
 use motif_core::TriMesh;
@@ -76,15 +77,22 @@ pub fn run(a: InfoArgs, _g: &GlobalArgs) -> anyhow::Result<()> {
     if model.is_mesh() {
         println!("  faces        {} in file, {} triangles", r.faces_in_file, r.triangles);
     }
+    // Lengths at the model's scale (a model 1e-9 across would print as zeros with 6 decimals).
+    let len = |x: f64| format_length(x, r.diagonal, 6);
     if let (Some(lo), Some(hi)) = (r.bbox_min, r.bbox_max) {
         println!(
-            "  bbox         [{:.6}, {:.6}, {:.6}] .. [{:.6}, {:.6}, {:.6}]",
-            lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
+            "  bbox         [{}, {}, {}] .. [{}, {}, {}]",
+            len(lo[0]),
+            len(lo[1]),
+            len(lo[2]),
+            len(hi[0]),
+            len(hi[1]),
+            len(hi[2])
         );
-        println!("  diagonal     {:.6}", r.diagonal);
+        println!("  diagonal     {}", len(r.diagonal));
     }
     if model.is_mesh() {
-        println!("  area         {:.6}", r.surface_area);
+        println!("  area         {}", format_length(r.surface_area, r.diagonal * r.diagonal, 6));
         println!(
             "  components   {}{}",
             r.components,

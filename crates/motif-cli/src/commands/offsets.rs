@@ -34,12 +34,13 @@ pub fn offsets(a: OffsetsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             }
         }
         for (i, p) in an.principal.iter().enumerate() {
+            let len = |x: f64| motif_core::geometry::format_length(x, p.length_model, 6);
             println!(
-                "  principal {i}: [{:.6}, {:.6}, {:.6}] (length {:.6} model units), support {} ({:.1}% of offsets), overlap {:.1}%",
-                p.offset_model[0],
-                p.offset_model[1],
-                p.offset_model[2],
-                p.length_model,
+                "  principal {i}: [{}, {}, {}] (length {} model units), support {} ({:.1}% of offsets), overlap {:.1}%",
+                len(p.offset_model[0]),
+                len(p.offset_model[1]),
+                len(p.offset_model[2]),
+                len(p.length_model),
                 p.support,
                 100.0 * p.support_share,
                 100.0 * p.overlap

@@ -190,10 +190,25 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             triangles: mesh.triangles.clone(),
         };
         motif_core::io::write(&a.output, &Model::from_mesh(&out), &WriteOptions::default())?;
+        // A flat model cannot be given a size along its zero extent: say so, not "as asked".
+        let flat: Vec<String> = (0..3)
+            .filter(|&k| e[k] <= 0.0)
+            .map(|k| format!("{} (asked {})", ["x", "y", "z"][k], size[k]))
+            .collect();
         if !g.quiet {
             eprintln!(
-                "{evidence}; scaled by {:.4} x {:.4} x {:.4} as asked (--plain-resize)",
-                s[0], s[1], s[2]
+                "{evidence}; scaled by {:.4} x {:.4} x {:.4} (--plain-resize){}",
+                s[0],
+                s[1],
+                s[2],
+                if flat.is_empty() { " as asked".to_string() } else { String::new() }
+            );
+        }
+        if !flat.is_empty() {
+            eprintln!(
+                "warning: {}: the model is flat along {}: a plain resize cannot give it a size there, which stays 0",
+                a.mesh.display(),
+                flat.join(", ")
             );
         }
         let report = Report {
@@ -268,7 +283,8 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     if !crate::output::json_on_stdout(&a.json.json) && !g.quiet {
         let input_boundary = mesh.edge_stats().boundary;
         for (k, o) in principal.iter().enumerate() {
-            println!("offset {k}: [{:.6}, {:.6}, {:.6}]  steps {:+}", o[0], o[1], o[2], steps[k]);
+            let len = |x: f64| motif_core::geometry::format_length(x, motif_core::geometry::norm(*o), 6);
+            println!("offset {k}: [{}, {}, {}]  steps {:+}", len(o[0]), len(o[1]), len(o[2]), steps[k]);
         }
         println!(
             "{:?}: {} nodes, {} labels, energy {:.4} ({} cycles), graph cut {:.1} ms, total {:.1} ms",

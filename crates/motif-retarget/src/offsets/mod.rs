@@ -853,9 +853,9 @@ fn verdict(
         Some(b) if repetitive => {
             let p = &principal[b];
             format!(
-                "repetitive: shifting by {:.4} (model units) maps {:.0}% of the surface onto itself and {:.0} \
+                "repetitive: shifting by {} (model units) maps {:.0}% of the surface onto itself and {:.0} \
                  points more of its edges and corners than half or one and a half of that shift; {histogram}",
-                p.length_model,
+                motif_core::geometry::format_length(p.length_model, p.length_model, 4),
                 100.0 * p.overlap,
                 100.0 * p.contrast
             )
