@@ -188,8 +188,12 @@ pub struct EncodingArgs {
 pub struct ConvertArgs {
     /// Input file.
     pub input: PathBuf,
-    /// Output file; its extension picks the format.
-    pub output: PathBuf,
+    /// Output file; its extension picks the format. Also `-o OUTPUT`.
+    #[arg(required_unless_present = "output_flag")]
+    pub output: Option<PathBuf>,
+    /// The output, given as an option instead (as the pipeline commands take it).
+    #[arg(short = 'o', long = "output", value_name = "OUTPUT", conflicts_with = "output")]
+    pub output_flag: Option<PathBuf>,
     #[command(flatten)]
     pub encoding: EncodingArgs,
     #[command(flatten)]
@@ -201,8 +205,12 @@ pub struct ConvertArgs {
 pub struct SampleArgs {
     /// Input mesh or point cloud.
     pub input: PathBuf,
-    /// Output point cloud (PLY keeps normals).
-    pub output: PathBuf,
+    /// Output point cloud (PLY keeps normals). Also `-o OUTPUT`.
+    #[arg(required_unless_present = "output_flag")]
+    pub output: Option<PathBuf>,
+    /// The output, given as an option instead (as the pipeline commands take it).
+    #[arg(short = 'o', long = "output", value_name = "OUTPUT", conflicts_with = "output")]
+    pub output_flag: Option<PathBuf>,
     /// Poisson-disc radius in model units (no two samples closer; implies --poisson).
     #[arg(long)]
     pub radius: Option<f64>,
@@ -233,8 +241,12 @@ pub enum OrientationArg {
 pub struct NormalsArgs {
     /// Input point cloud or mesh.
     pub input: PathBuf,
-    /// Output PLY with nx ny nz.
-    pub output: PathBuf,
+    /// Output PLY with nx ny nz. Also `-o OUTPUT`.
+    #[arg(required_unless_present = "output_flag")]
+    pub output: Option<PathBuf>,
+    /// The output, given as an option instead (as the pipeline commands take it).
+    #[arg(short = 'o', long = "output", value_name = "OUTPUT", conflicts_with = "output")]
+    pub output_flag: Option<PathBuf>,
     /// Neighbours used by the PCA fit.
     #[arg(short, long, default_value_t = 16)]
     pub k: usize,
@@ -258,8 +270,12 @@ pub struct NormalsArgs {
 pub struct CurvatureArgs {
     /// Input mesh or point cloud (normals used when present).
     pub input: PathBuf,
-    /// Output: PLY (properties k1 k2 d1x d1y d1z d2x d2y d2z) or CSV.
-    pub output: PathBuf,
+    /// Output: PLY (properties k1 k2 d1x d1y d1z d2x d2y d2z) or CSV. Also `-o OUTPUT`.
+    #[arg(required_unless_present = "output_flag")]
+    pub output: Option<PathBuf>,
+    /// The output, given as an option instead (as the pipeline commands take it).
+    #[arg(short = 'o', long = "output", value_name = "OUTPUT", conflicts_with = "output")]
+    pub output_flag: Option<PathBuf>,
     /// Neighbours of the quadratic fit (default 15).
     #[arg(short, long, conflicts_with = "radius")]
     pub k: Option<usize>,
@@ -355,9 +371,12 @@ pub struct ExampleArgs {
     /// Example name (see --list).
     #[arg(required_unless_present = "list")]
     pub name: Option<String>,
-    /// Output mesh file.
-    #[arg(required_unless_present = "list")]
+    /// Output mesh file. Also `-o OUTPUT`.
+    #[arg(required_unless_present_any = ["list", "output_flag"])]
     pub output: Option<PathBuf>,
+    /// The output, given as an option instead (as the pipeline commands take it).
+    #[arg(short = 'o', long = "output", value_name = "OUTPUT", conflicts_with = "output")]
+    pub output_flag: Option<PathBuf>,
     /// Also write the known structure (symmetries, cell pitch, instances) as JSON.
     #[arg(long, value_name = "FILE")]
     pub structure: Option<PathBuf>,
@@ -951,4 +970,45 @@ pub enum RotationsArg {
     Never,
     /// All.
     Always,
+}
+
+/// The output file of a command that takes it as its last argument or as `-o` (clap requires
+/// exactly one of the two).
+fn output_of<'a>(positional: &'a Option<PathBuf>, flag: &'a Option<PathBuf>) -> &'a std::path::Path {
+    positional.as_deref().or(flag.as_deref()).expect("clap requires the output as an argument or -o")
+}
+
+impl ConvertArgs {
+    /// The output file (argument or `-o`).
+    pub fn output(&self) -> &std::path::Path {
+        output_of(&self.output, &self.output_flag)
+    }
+}
+
+impl SampleArgs {
+    /// The output file (argument or `-o`).
+    pub fn output(&self) -> &std::path::Path {
+        output_of(&self.output, &self.output_flag)
+    }
+}
+
+impl NormalsArgs {
+    /// The output file (argument or `-o`).
+    pub fn output(&self) -> &std::path::Path {
+        output_of(&self.output, &self.output_flag)
+    }
+}
+
+impl CurvatureArgs {
+    /// The output file (argument or `-o`).
+    pub fn output(&self) -> &std::path::Path {
+        output_of(&self.output, &self.output_flag)
+    }
+}
+
+impl ExampleArgs {
+    /// The output file (argument or `-o`), if any (`--list` needs none).
+    pub fn output(&self) -> Option<&std::path::Path> {
+        self.output.as_deref().or(self.output_flag.as_deref())
+    }
 }

@@ -252,6 +252,32 @@ fn detected_copies_of_a_mesh_part_make_an_exact_symmetry_annotation() {
 }
 
 #[test]
+fn commands_with_an_output_argument_also_take_it_as_dash_o() {
+    let d = tmp();
+    assert!(motif(&["example", "shelf", "-o", "shelf.obj"], d.path()).status.success());
+    assert!(motif(&["example", "fence", "fence.obj"], d.path()).status.success());
+    for args in [
+        vec!["convert", "shelf.obj", "-o", "a.ply"],
+        vec!["convert", "shelf.obj", "b.ply"],
+        vec!["sample", "shelf.obj", "--count", "2000", "-o", "s.ply"],
+        vec!["normals", "s.ply", "--output", "n.ply"],
+        vec!["curvature", "n.ply", "-o", "k.csv"],
+    ] {
+        let o = motif(&args, d.path());
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+        let out = args.iter().rev().find(|a| a.contains('.')).unwrap();
+        assert!(d.path().join(out).exists(), "{args:?} wrote {out}");
+    }
+    // Both, or neither: a usage error that writes nothing.
+    let o = motif(&["convert", "shelf.obj", "c.ply", "-o", "d.ply"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(!d.path().join("c.ply").exists() && !d.path().join("d.ply").exists());
+    let o = motif(&["normals", "s.ply"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("OUTPUT"), "{}", stderr(&o));
+}
+
+#[test]
 fn sparsity_with_no_readable_model_fails() {
     let d = tmp();
     std::fs::create_dir(d.path().join("bad")).unwrap();

@@ -18,13 +18,13 @@ struct ConvertReport {
 }
 
 pub fn run(a: ConvertArgs, g: &GlobalArgs) -> anyhow::Result<()> {
-    crate::output::check_outputs(&[Some(&a.output), a.json.json.as_deref()], &[&a.input], g.force)?;
+    crate::output::check_outputs(&[Some(a.output()), a.json.json.as_deref()], &[&a.input], g.force)?;
     let t = Instant::now();
     let model = super::read_model(&a.input)?;
-    super::write_model(&a.output, &model, &[&a.input], g, &super::write_options(&a.encoding))?;
+    super::write_model(a.output(), &model, &[&a.input], g, &super::write_options(&a.encoding))?;
     let r = ConvertReport {
         input: a.input.display().to_string(),
-        output: a.output.display().to_string(),
+        output: a.output().display().to_string(),
         vertices: model.vertices.len(),
         triangles: model.triangles.len(),
         warnings: model.warnings.clone(),

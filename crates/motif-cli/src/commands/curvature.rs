@@ -44,13 +44,13 @@ fn summary(mut v: Vec<f64>) -> Summary {
 }
 
 pub fn run(a: CurvatureArgs, g: &GlobalArgs) -> anyhow::Result<()> {
-    crate::output::check_outputs(&[Some(&a.output), a.json.json.as_deref()], &[&a.input], g.force)?;
-    let ext = a.output.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
+    crate::output::check_outputs(&[Some(a.output()), a.json.json.as_deref()], &[&a.input], g.force)?;
+    let ext = a.output().extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
     if !matches!(ext.as_deref(), Some("ply" | "csv")) {
         return Err(bad_input(format!(
             "{}: curvature is written as PLY (vertex properties k1, k2, d1, d2) or CSV; other formats \
              cannot hold it",
-            a.output.display()
+            a.output().display()
         )));
     }
     let mut model = super::read_model_for_geometry(&a.input, g)?;
@@ -85,9 +85,9 @@ pub fn run(a: CurvatureArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         }
     })?;
     let ms = ms_since(t);
-    let is_csv = a.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv"));
+    let is_csv = a.output().extension().is_some_and(|e| e.eq_ignore_ascii_case("csv"));
     if is_csv {
-        write_csv(&a.output, &model.vertices.positions, &pc)?;
+        write_csv(a.output(), &model.vertices.positions, &pc)?;
     } else {
         let v = &mut model.vertices;
         let col = |f: &dyn Fn(&PrincipalCurvature) -> f64| AttributeData::Float(pc.iter().map(f).collect());
@@ -102,12 +102,12 @@ pub fn run(a: CurvatureArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         if v.normals.is_none() {
             v.normals = Some(pc.iter().map(|c| c.normal).collect());
         }
-        super::write_model(&a.output, &model, &[&a.input], g, &super::write_options(&a.encoding))?;
+        super::write_model(a.output(), &model, &[&a.input], g, &super::write_options(&a.encoding))?;
     }
     let fitted = pc.iter().filter(|c| c.status == CurvatureStatus::Fitted).count();
     let r = CurvatureReport {
         input: a.input.display().to_string(),
-        output: a.output.display().to_string(),
+        output: a.output().display().to_string(),
         points: pc.len(),
         neighbourhood: format!("{neighbourhood:?}"),
         fitted,

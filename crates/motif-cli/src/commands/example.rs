@@ -20,7 +20,7 @@ pub fn run(a: ExampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         }
         return Ok(());
     }
-    let (Some(name), Some(output)) = (a.name.clone(), a.output.clone()) else {
+    let (Some(name), Some(output)) = (a.name.clone(), a.output().map(|p| p.to_path_buf())) else {
         return Err(bad_input("usage: motif example NAME OUT (or motif example --list)"));
     };
     if let Some(kind) = SceneKind::from_name(&name) {

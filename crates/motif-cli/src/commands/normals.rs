@@ -25,7 +25,7 @@ struct NormalsReport {
 }
 
 pub fn run(a: NormalsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
-    crate::output::check_outputs(&[Some(&a.output), a.json.json.as_deref()], &[&a.input], g.force)?;
+    crate::output::check_outputs(&[Some(a.output()), a.json.json.as_deref()], &[&a.input], g.force)?;
     let mut model = super::read_model(&a.input)?;
     let t = Instant::now();
     let orientation = match a.orientation {
@@ -70,10 +70,10 @@ pub fn run(a: NormalsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     };
     model.vertices.normals = Some(normals);
     let ms = ms_since(t);
-    super::write_model(&a.output, &model, &[&a.input], g, &super::write_options(&a.encoding))?;
+    super::write_model(a.output(), &model, &[&a.input], g, &super::write_options(&a.encoding))?;
     let r = NormalsReport {
         input: a.input.display().to_string(),
-        output: a.output.display().to_string(),
+        output: a.output().display().to_string(),
         points: model.vertices.len(),
         method: if use_mesh { "area-weighted face normals" } else { "PCA over k neighbours" },
         neighbours: a.k,

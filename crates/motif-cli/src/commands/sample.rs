@@ -30,7 +30,7 @@ struct SampleReport {
 const MAX_SAMPLES: usize = 50_000_000;
 
 pub fn run(a: SampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
-    crate::output::check_outputs(&[Some(&a.output), a.json.json.as_deref()], &[&a.input], g.force)?;
+    crate::output::check_outputs(&[Some(a.output()), a.json.json.as_deref()], &[&a.input], g.force)?;
     if let Some(r) = a.radius {
         if !(r > 0.0 && r.is_finite()) {
             return Err(bad_input(format!("--radius {r}: must be a positive number")));
@@ -81,7 +81,7 @@ pub fn run(a: SampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let ms = ms_since(t);
     let samples = cloud.len();
     super::write_model(
-        &a.output,
+        a.output(),
         &Model::from_point_cloud(cloud),
         &[&a.input],
         g,
@@ -89,7 +89,7 @@ pub fn run(a: SampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     )?;
     let r = SampleReport {
         input: a.input.display().to_string(),
-        output: a.output.display().to_string(),
+        output: a.output().display().to_string(),
         method,
         requested_radius: a.radius,
         requested_count: a.count,
