@@ -978,33 +978,19 @@ fn output_of<'a>(positional: &'a Option<PathBuf>, flag: &'a Option<PathBuf>) -> 
     positional.as_deref().or(flag.as_deref()).expect("clap requires the output as an argument or -o")
 }
 
-impl ConvertArgs {
-    /// The output file (argument or `-o`).
-    pub fn output(&self) -> &std::path::Path {
-        output_of(&self.output, &self.output_flag)
-    }
+/// `output()`: the output file of a command that takes it as an argument or as `-o`.
+macro_rules! output_argument_or_flag {
+    ($($args:ty),*) => {$(
+        impl $args {
+            /// The output file (argument or `-o`).
+            pub fn output(&self) -> &std::path::Path {
+                output_of(&self.output, &self.output_flag)
+            }
+        }
+    )*};
 }
 
-impl SampleArgs {
-    /// The output file (argument or `-o`).
-    pub fn output(&self) -> &std::path::Path {
-        output_of(&self.output, &self.output_flag)
-    }
-}
-
-impl NormalsArgs {
-    /// The output file (argument or `-o`).
-    pub fn output(&self) -> &std::path::Path {
-        output_of(&self.output, &self.output_flag)
-    }
-}
-
-impl CurvatureArgs {
-    /// The output file (argument or `-o`).
-    pub fn output(&self) -> &std::path::Path {
-        output_of(&self.output, &self.output_flag)
-    }
-}
+output_argument_or_flag!(ConvertArgs, SampleArgs, NormalsArgs, CurvatureArgs);
 
 impl ExampleArgs {
     /// The output file (argument or `-o`), if any (`--list` needs none).

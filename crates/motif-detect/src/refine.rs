@@ -34,6 +34,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::detection::DetectionResult;
 
+/// Most ICP runs per class spent retrying instances from their classmates' rotations.
+const RETRY_BUDGET: usize = 384;
+
 /// Options of [`refine_transforms`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RefineOptions {
@@ -148,11 +151,17 @@ pub fn refine_transforms(
             .iter()
             .map(|i| motif_core::geometry::lerp(i.bbox_min, i.bbox_max, 0.5))
             .collect();
+        let poor =
+            |r: &Option<(Mat4, f64, f64)>| r.as_ref().is_some_and(|r| r.2 > 2.0 * typical + 1e-12 * diagonal);
+        // At most RETRY_BUDGET ICP runs per class (a noisy scan can have many instances that fit
+        // worse than typical): fewer rotations each when many instances are retried.
+        let retried = refined.iter().filter(|r| poor(r)).count().max(1);
+        rotations.truncate((RETRY_BUDGET / retried).max(1));
         refined.par_iter_mut().zip(&centres).for_each(|(r, c)| {
-            let Some((m, _, after)) = r else { return };
-            if *after <= 2.0 * typical + 1e-12 * diagonal {
+            if !poor(r) {
                 return;
             }
+            let Some((m, _, after)) = r else { return };
             for rot in &rotations {
                 let mut start = *rot;
                 let moved = transform_point(rot, centre);

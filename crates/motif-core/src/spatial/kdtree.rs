@@ -8,7 +8,9 @@
 //! them, and k-nearest queries over the whole scan quadratic (`motif normals` took 30 s instead of
 //! 0.7 s; 300,000 identical points did not finish in 100 s). The tree is built over the distinct
 //! positions, and each query expands a position into the indices that share it, so results are
-//! the same as over the full set.
+//! the same as over the full set. Finding the duplicates (a parallel sort of the coordinates'
+//! bit patterns) doubles the build time when there are none: 100,000 points 5.9 → 11.5 ms
+//! (`cargo bench -p motif-core --bench kdtree`), against 93 ms for one k-nearest query per point.
 
 use std::num::NonZeroUsize;
 

@@ -88,8 +88,8 @@ pub(crate) struct Capped {
     pub corners: usize,
     /// Planes whose openings were capped by the winding rule (loops that cross).
     pub winding_planes: usize,
-    /// Pairs of triangles on the same vertices facing opposite ways, removed after capping
-    /// ([`remove_cancelling_pairs`]).
+    /// Pairs of triangles on the same vertices facing opposite ways, or the same way (a sheet
+    /// laid twice), removed after capping ([`remove_cancelling_pairs`]).
     pub cancelled_pairs: usize,
     /// Closed parts lying flat on one voxel face plane, removed after capping
     /// ([`remove_flat_sheets`]).

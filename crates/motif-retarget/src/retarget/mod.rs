@@ -389,8 +389,8 @@ pub struct RetargetReport {
     #[serde(default)]
     pub cap_corners: usize,
     /// Pairs of triangles on the same three vertices facing opposite ways (walls of no
-    /// thickness, such as a cap over an input face lying on the voxel face it caps), removed
-    /// after capping.
+    /// thickness, such as a cap over an input face lying on the voxel face it caps) or the same
+    /// way (a sheet laid twice), removed after capping.
     #[serde(default)]
     pub cancelled_pairs: usize,
     /// Closed parts lying flat on one voxel face plane (two layers of no thickness that do not
