@@ -265,6 +265,11 @@ pub fn principal_curvatures_mesh(
     Ok(fit_all(&mesh.positions, &normals, Neighbours::Tree(&tree), options))
 }
 
+/// At a heap of more coincident points than this, a radius neighbourhood is this many of them
+/// ([`KdTree::within_unsorted_capped`]): a fit over a heap is degenerate whatever its size, and
+/// listing the whole heap from each of its points made `--radius` quadratic in the heap.
+const HEAP_CAP: usize = 256;
+
 /// Where neighbourhoods come from.
 enum Neighbours<'a> {
     Tree(&'a KdTree),
@@ -363,7 +368,7 @@ fn fit_all(
                     |local, (&p, &n)| {
                         // The kd-tree API returns a fresh Vec per query; the rest reuses `local`.
                         let nbrs = match options.neighbourhood {
-                            Neighbourhood::Radius(r) => tree.within_unsorted(p, r),
+                            Neighbourhood::Radius(r) => tree.within_unsorted_capped(p, r, HEAP_CAP),
                             Neighbourhood::Knn(k) | Neighbourhood::Rings(k) => tree.knn(p, k),
                         };
                         local.clear();

@@ -215,6 +215,21 @@ impl KdTree {
         out
     }
 
+    /// [`KdTree::within_unsorted`], except at a heap of more than `cap` coincident points: a
+    /// query made exactly there returns `cap` of them (distance 0) and nothing else, instead of
+    /// the whole heap. A heap's neighbourhood is degenerate anyway, and listing it from each of
+    /// its points is quadratic (150,000 returns at a scanner's origin). Elsewhere the result is
+    /// the full radius neighbourhood.
+    pub fn within_unsorted_capped(&self, q: Point3, r: f64, cap: usize) -> Vec<Neighbour> {
+        if let Some(here) = self.shared.as_ref().and_then(|s| s.at(&q))
+            && here.len() > cap
+            && r >= 0.0
+        {
+            return here[..cap].iter().map(|&i| Neighbour { index: i as usize, distance: 0.0 }).collect();
+        }
+        self.within_unsorted(q, r)
+    }
+
     /// True when some point lies within distance `r` of `q`.
     pub fn any_within(&self, q: Point3, r: f64) -> bool {
         self.nearest(q).distance <= r
@@ -321,6 +336,25 @@ mod tests {
             let got: Vec<usize> = tree.within(q, 0.15).iter().map(|n| n.index).collect();
             let want: Vec<usize> = b.iter().take_while(|n| n.distance <= 0.15).map(|n| n.index).collect();
             assert_eq!(got, want);
+        }
+    }
+
+    #[test]
+    fn radius_queries_at_a_heap_are_capped_there_only() {
+        let mut pts = cloud(200, 8);
+        pts.extend(std::iter::repeat_n([0.5, 0.5, 0.5], 500));
+        let tree = KdTree::new(&pts).unwrap();
+        let at_heap = tree.within_unsorted_capped([0.5, 0.5, 0.5], 0.2, 64);
+        assert_eq!(at_heap.len(), 64);
+        assert!(at_heap.iter().all(|n| n.distance == 0.0 && n.index >= 200));
+        // Anywhere else, and at a heap no larger than the cap, the full neighbourhood.
+        for (q, cap) in [(pts[3], 64), ([0.5, 0.5, 0.5], 500)] {
+            let mut a: Vec<usize> =
+                tree.within_unsorted_capped(q, 0.2, cap).iter().map(|n| n.index).collect();
+            let mut b: Vec<usize> = tree.within_unsorted(q, 0.2).iter().map(|n| n.index).collect();
+            a.sort_unstable();
+            b.sort_unstable();
+            assert_eq!(a, b);
         }
     }
 
