@@ -503,8 +503,12 @@ pub fn detect(
 
     let t5 = Instant::now();
     progress.start("labels, boxes and transforms", 0);
-    let (mut result, labels) = to_result(cloud, scene, &classes)?;
-    report.refine = refine_transforms(&mut result, cloud, &o.refine);
+    // One kd-tree over the input serves the point labels and the transform refinement.
+    let tree = if classes.is_empty() { None } else { Some(KdTree::new(&cloud.positions)?) };
+    let (mut result, labels) = to_result(cloud, tree.as_ref(), scene, &classes)?;
+    if let Some(tree) = &tree {
+        report.refine = refine_transforms(&mut result, cloud, tree, &o.refine);
+    }
     progress.finish();
     report.seconds.output = t5.elapsed().as_secs_f64();
     report.instances_per_class = classes.iter().map(|c| c.instances.len()).collect();
@@ -603,14 +607,15 @@ fn size_stats(words: &[crate::dictionary::Word]) -> (usize, usize) {
 }
 
 /// The shared-schema result and per-point labels: an input point belongs to the first instance
-/// (in class order) whose oriented box contains it.
+/// (in class order) whose oriented box contains it. `tree` is over `cloud`'s positions (`None`
+/// when there are no classes).
 fn to_result(
     cloud: &PointCloud,
+    tree: Option<&KdTree>,
     scene: &str,
     classes: &[Class],
 ) -> Result<(DetectionResult, Vec<Option<(u32, u32)>>)> {
     let mut labels: Vec<Option<(u32, u32)>> = vec![None; cloud.len()];
-    let tree = if classes.is_empty() { None } else { Some(KdTree::new(&cloud.positions)?) };
     let mut out = Vec::new();
     for (ci, c) in classes.iter().enumerate() {
         let first = c.instances.first().map(|i| motif_core::procedural::rigid_inverse(&i.frame));
@@ -619,7 +624,6 @@ fn to_result(
             let centre = inst.aabb.center();
             let r = inst.aabb.diagonal() / 2.0;
             let mut pts: Vec<u32> = tree
-                .as_ref()
                 .map(|t| t.within_unsorted(centre, r))
                 .unwrap_or_default()
                 .into_iter()

@@ -71,17 +71,18 @@ pub struct RefineReport {
 }
 
 /// Refines the instance transforms of `result` in place (see the module documentation).
-/// `cloud` is the point set the instances' `points` index.
+/// `cloud` is the point set the instances' `points` index, and `tree` a kd-tree over its
+/// positions.
 pub fn refine_transforms(
     result: &mut DetectionResult,
     cloud: &PointCloud,
+    tree: &KdTree,
     o: &RefineOptions,
 ) -> RefineReport {
     let mut report = RefineReport::default();
     if cloud.positions.is_empty() || result.classes.iter().all(|c| c.instances.len() < 2) {
         return report;
     }
-    let Ok(tree) = KdTree::new(&cloud.positions) else { return report };
     let normals = cloud.normals.as_deref();
     for class in &mut result.classes {
         let Some(first) = class.instances.first() else { continue };
@@ -114,7 +115,7 @@ pub fn refine_transforms(
         // ICP from `initial`, kept only when it fits better and stays on the same instance.
         let fit_from = |initial: &Mat4| -> (Mat4, f64) {
             let before = rms(initial);
-            let fit = icp_with_tree(&source, &cloud.positions, &tree, normals, initial, &options).ok();
+            let fit = icp_with_tree(&source, &cloud.positions, tree, normals, initial, &options).ok();
             match fit.map(|f| (rms(&f.transform), f.transform)) {
                 Some((after, m))
                     if after < before
