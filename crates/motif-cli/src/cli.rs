@@ -487,7 +487,7 @@ pub struct MrfSolveArgs {
 #[derive(Debug, Args)]
 pub struct MrfGenerateArgs {
     /// Grid size as NX,NY,NZ.
-    #[arg(long, value_delimiter = ',', default_values_t = [10, 10, 10])]
+    #[arg(long, value_delimiter = ',', default_value = "10,10,10")]
     pub dims: Vec<usize>,
     /// Number of labels.
     #[arg(long, default_value_t = 8)]

@@ -161,6 +161,46 @@ pub fn check_outputs(outputs: &[Option<&Path>], inputs: &[&Path], force: bool) -
     Ok(())
 }
 
+/// What an output file holds, for [`check_output_formats`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OutputKind {
+    /// A mesh or point cloud in any format Motif writes (by extension).
+    Model,
+    /// A point cloud: any model format but STL, which holds only triangles.
+    PointCloud,
+    /// A picture, written as PNG.
+    Png,
+}
+
+/// Checks before any work that each output's extension names a format Motif writes for what it
+/// will hold, so that a typo in an extension does not surface only after a long computation.
+/// `None` (an output not asked for) is skipped.
+pub fn check_output_formats(outputs: &[(Option<&Path>, OutputKind)]) -> anyhow::Result<()> {
+    for &(path, kind) in outputs {
+        let Some(path) = path else { continue };
+        match kind {
+            OutputKind::Model | OutputKind::PointCloud => {
+                let format = motif_core::io::Format::from_path(path).map_err(|e| bad_input(e.to_string()))?;
+                if kind == OutputKind::PointCloud && format == motif_core::io::Format::Stl {
+                    return Err(bad_input(format!(
+                        "{}: STL holds only triangles, not a point cloud (use .ply, .obj, .off, .gltf or .glb)",
+                        path.display()
+                    )));
+                }
+            }
+            OutputKind::Png => {
+                if !path.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
+                    return Err(bad_input(format!(
+                        "{}: pictures are written as PNG; give the file a .png extension",
+                        path.display()
+                    )));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Where `output` will be written: its resolved directory joined with its file name (the file
 /// itself need not exist). Errors when the directory does not exist or the path is a directory.
 fn resolve_output(output: &Path) -> anyhow::Result<PathBuf> {

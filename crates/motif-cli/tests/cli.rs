@@ -123,6 +123,13 @@ fn every_output_is_checked_before_any_work() {
     refused(&["convert", "s.obj", "."], "is a directory");
     // Outputs that could not hold the result are refused up front too.
     refused(&["curvature", "s.obj", "k.obj"], "PLY");
+    // An output extension Motif does not write, before any work (retarget's analysis used to run
+    // first, and deform's whole solve).
+    refused(&["retarget", "s.obj", "-o", "r.xyz", "--steps", "1"], "unsupported format \"xyz\"");
+    refused(&["convert", "s.obj", "c.xyz"], "unsupported format");
+    refused(&["sample", "s.obj", "p.stl", "--count", "100"], "STL holds only triangles");
+    refused(&["offsets", "s.obj", "--plot", "o.svg"], "PNG");
+    refused(&["retarget", "s.obj", "-o", "r.obj", "--steps", "1", "--preview", "p.jpg"], "PNG");
     // Absurd sizes are refused instead of aborting on allocation.
     refused(&["sample", "s.obj", "x.ply", "--count", "99999999999999"], "--force");
     refused(&["mrf", "generate", "--dims", "100,100,100", "--labels", "1024", "-o", "g.json"], "enormous");
@@ -493,6 +500,19 @@ fn symmetry_detect_writes_an_annotation_and_mrf_solve_reports_energy() {
         serde_json::from_slice(&std::fs::read(d.path().join("chair.sym.json")).unwrap()).unwrap();
     assert_eq!(ann["format"], "motif_symmetry_v1");
     assert_eq!(ann["symmetries"][0]["generators"].as_array().map(|g| g.len()), Some(1));
+    // An annotation that cannot be resolved is bad input (exit 2) naming the symmetry and the
+    // problem, as deform says; not "does not fit within its tolerance" (exit 1).
+    let skew = r#"{"format":"motif_symmetry_v1","tolerance":1e-3,"symmetries":[{"name":"stretch","region":"all",
+        "generators":[[[2,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]]}]}"#;
+    std::fs::write(d.path().join("skew.json"), skew).unwrap();
+    let o = motif(&["symmetry", "check", "chair.obj", "skew.json"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("stretch") && !stderr(&o).contains("within its tolerance"), "{}", stderr(&o));
+    // A typo in a field is named, not "did not match any variant of untagged enum".
+    std::fs::write(d.path().join("typo.json"), skew.replace("generators", "generator")).unwrap();
+    let o = motif(&["symmetry", "check", "chair.obj", "typo.json"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("unknown field `generator`"), "{}", stderr(&o));
 
     let o = motif(&["mrf", "generate", "--dims", "6,5,4", "--labels", "5", "-o", "p.json"], d.path());
     assert!(o.status.success(), "{}", stderr(&o));
@@ -728,6 +748,9 @@ fn eval_scores_a_detection_against_ground_truth() {
         (Some("window"), Some(2), Some(1), Some(1)),
         "{r}"
     );
+    // --quiet hides notes, not results.
+    let o = motif(&["eval", "det.json", "gt.json", "-q"], d.path());
+    assert!(o.status.success() && stdout(&o).contains("F 0.500"), "{}", stdout(&o));
     let o = motif(&["eval", "det.json", "gt.json", "--per-class"], d.path());
     assert!(o.status.success());
     let out = String::from_utf8_lossy(&o.stdout);

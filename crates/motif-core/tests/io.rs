@@ -297,6 +297,42 @@ fn a_utf8_byte_order_mark_before_text_is_skipped() {
 }
 
 #[test]
+fn ascii_stl_keywords_are_read_in_any_case() {
+    // Some exporters write upper-case keywords; read as binary, the header announced 1.3e9
+    // triangles and the file was called truncated.
+    let stl = b"SOLID A\nFACET NORMAL 0 0 1\n OUTER LOOP\n  VERTEX 0 0 0\n  Vertex 1 0 0\n  VERTEX 0 1 0\n ENDLOOP\nENDFACET\nEndSolid A\n";
+    let m = io::read_from_bytes(stl, Format::Stl, Path::new("upper.stl")).unwrap();
+    assert_eq!((m.vertices.positions.len(), m.triangles.len()), (3, 1));
+    assert!(m.warnings.is_empty(), "{:?}", m.warnings);
+}
+
+#[test]
+fn ply_triangle_strips_are_read_and_face_one_way() {
+    // Four vertices of a unit square; one strip, then the same square as two strips split by −1
+    // with a degenerate join (2, 2) that adds nothing.
+    let head = "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\nproperty float z\n\
+                element tristrips 1\nproperty list int int vertex_indices\nend_header\n\
+                0 0 0\n1 0 0\n0 1 0\n1 1 0\n2 0 0\n";
+    let m = io::read_from_bytes(format!("{head}4 0 1 2 3\n").as_bytes(), Format::Ply, Path::new("s.ply"))
+        .unwrap();
+    assert_eq!(m.triangles, vec![[0, 1, 2], [2, 1, 3]]);
+    let area_z = |t: [u32; 3]| {
+        let p = |i: u32| m.vertices.positions[i as usize];
+        let (a, b, c) = (p(t[0]), p(t[1]), p(t[2]));
+        (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+    };
+    assert!(m.triangles.iter().all(|&t| area_z(t) > 0.0), "both face +z");
+    let m = io::read_from_bytes(
+        format!("{head}9 0 1 2 2 2 -1 1 4 3\n").as_bytes(),
+        Format::Ply,
+        Path::new("s.ply"),
+    )
+    .unwrap();
+    assert_eq!(m.triangles, vec![[0, 1, 2], [1, 4, 3]]);
+    assert!(m.warnings.is_empty(), "{:?}", m.warnings);
+}
+
+#[test]
 fn warnings_report_dropped_faces_and_polygons_count_once() {
     let obj = b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\nf 1 1 2\nf 2 3 3\nf 1 2 3\n";
     let m = io::read_from_bytes(obj, Format::Obj, Path::new("q.obj")).unwrap();

@@ -35,14 +35,89 @@ pub const ORTHOGONALITY_TOLERANCE: f64 = 1e-6;
 /// and samples on a region's boundary count as inside (rounding-level; matches motif-core).
 pub const REGION_MARGIN: f64 = 1e-9;
 
+/// The first symmetry entry of an annotation that does not parse, with its index and field and
+/// what is wrong there; `None` when the entries are not what failed (the error is elsewhere).
+fn diagnose_symmetries(json: &str) -> Option<String> {
+    use motif_core::procedural::SymmetryInstance;
+    let v: serde_json::Value = serde_json::from_str(json).ok()?;
+    let entries = v.get("symmetries")?.as_array()?;
+    for (i, e) in entries.iter().enumerate() {
+        let Some(obj) = e.as_object() else {
+            return Some(format!(
+                "symmetries[{i}]: expected an object with `region` and `generators`, or `instances`"
+            ));
+        };
+        let known = ["name", "region", "generators", "instances"];
+        let unknown: Vec<&str> = obj.keys().map(|k| k.as_str()).filter(|k| !known.contains(k)).collect();
+        let field = |k: &str| obj.get(k);
+        if let Some(g) = field("generators") {
+            let Some(gens) = g.as_array() else {
+                return Some(format!("symmetries[{i}].generators: expected a list of 4×4 matrices"));
+            };
+            for (j, m) in gens.iter().enumerate() {
+                if let Err(err) = serde_json::from_value::<Mat4>(m.clone()) {
+                    return Some(format!(
+                        "symmetries[{i}].generators[{j}]: expected a 4×4 matrix (4 rows of 4 numbers): {err}"
+                    ));
+                }
+            }
+            let Some(r) = field("region") else {
+                return Some(format!(
+                    "symmetries[{i}]: a group needs a `region` (\"all\" for the whole shape)"
+                ));
+            };
+            if let Err(err) = serde_json::from_value::<Region>(r.clone()) {
+                return Some(format!("symmetries[{i}].region: {err}"));
+            }
+        } else if let Some(list) = field("instances") {
+            let Some(list) = list.as_array() else {
+                return Some(format!("symmetries[{i}].instances: expected a list of {{region, transform}}"));
+            };
+            for (j, inst) in list.iter().enumerate() {
+                if let Err(err) = serde_json::from_value::<SymmetryInstance>(inst.clone()) {
+                    return Some(format!("symmetries[{i}].instances[{j}]: {err}"));
+                }
+            }
+        } else {
+            let also = if unknown.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    " (unknown field{} `{}`)",
+                    if unknown.len() > 1 { "s" } else { "" },
+                    unknown.join("`, `")
+                )
+            };
+            return Some(format!(
+                "symmetries[{i}] has neither `generators` (a group on a `region`) nor `instances`{also}"
+            ));
+        }
+        match field("name") {
+            Some(name) if !name.is_string() => {
+                return Some(format!("symmetries[{i}].name: expected a string"));
+            }
+            None => return Some(format!("symmetries[{i}]: missing `name`")),
+            _ => {}
+        }
+    }
+    None
+}
+
 /// Parses a `motif_symmetry_v1` annotation from JSON text and checks its format tag and tolerance.
 pub fn parse_annotation(json: &str) -> Result<SymmetryAnnotation> {
     parse_annotation_named(json, "symmetry annotation")
 }
 
 fn parse_annotation_named(json: &str, what: &str) -> Result<SymmetryAnnotation> {
-    let a: SymmetryAnnotation =
-        serde_json::from_str(json).map_err(|source| DeformError::Json { what: what.to_string(), source })?;
+    let a: SymmetryAnnotation = serde_json::from_str(json).map_err(|source| {
+        // The two kinds of symmetry are untagged, so serde's own message for a bad entry is "data
+        // did not match any variant"; say which entry and which field instead.
+        let source = match diagnose_symmetries(json) {
+            Some(message) => <serde_json::Error as serde::de::Error>::custom(message),
+            None => source,
+        };
+        DeformError::Json { what: what.to_string(), source }
+    })?;
     // The two kinds of symmetry are told apart by their fields (untagged); an entry with the
     // fields of both would be read as a group and its instances dropped without a word.
     if let Ok(v) = serde_json::from_str::<serde_json::Value>(json) {
@@ -558,5 +633,21 @@ mod tests {
         let both = ok.replace(r#""region":"all","#, r#""region":"all","instances":[],"#);
         let e = parse_annotation(&both).unwrap_err();
         assert!(matches!(e, DeformError::Json { .. }) && e.to_string().contains("symmetries[0]"), "{e}");
+    }
+
+    #[test]
+    fn parse_errors_name_the_entry_and_field() {
+        let ok = r#"{"format":"motif_symmetry_v1","tolerance":1e-3,"symmetries":[{"name":"m","region":"all","generators":[[[-1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]]}]}"#;
+        let cases = [
+            // A 3×3 matrix.
+            (ok.replace(",[0,0,0,1]]]", "]]"), "symmetries[0].generators[0]"),
+            (ok.replace(r#""region":"all""#, r#""region":{"vertices":[-1]}"#), "symmetries[0].region"),
+            (ok.replace("generators", "generator"), "unknown field `generator`"),
+            (ok.replace(r#""name":"m","#, ""), "missing `name`"),
+        ];
+        for (json, expected) in cases {
+            let e = parse_annotation(&json).unwrap_err().to_string();
+            assert!(e.contains(expected) && !e.contains("untagged"), "{expected}: {e}");
+        }
     }
 }

@@ -148,6 +148,14 @@ pub struct GridSolution {
     pub truncated_terms: usize,
     /// Why the expansion loop stopped.
     pub termination: Termination,
+    /// Sites whose final label costs `invalid_cost` or more: every label of such a site is
+    /// forbidden, or the solver found no way around one (0 for a problem with a valid labelling
+    /// that alpha-expansion reaches).
+    #[serde(default)]
+    pub forbidden_sites: usize,
+    /// What makes V other than a metric ([`GridProblem::pairwise_issues`]); empty for a metric.
+    #[serde(default)]
+    pub pairwise_issues: Vec<String>,
     /// Solve time in milliseconds (graph construction and alpha-expansion; not file loading).
     pub solve_ms: f64,
 }
@@ -408,20 +416,85 @@ impl GridProblem {
                 ));
             }
         }
+        if self.edge_weight < 0 {
+            return Err(Error::field(
+                "edge_weight",
+                format!(
+                    "{} is negative: alpha-expansion needs non-negative pairwise costs (a metric V times a weight ≥ 0)",
+                    self.edge_weight
+                ),
+            ));
+        }
+        if self.invalid_cost <= 0 {
+            return Err(Error::field(
+                "invalid_cost",
+                format!(
+                    "{} must be positive (the large cost that marks a forbidden label)",
+                    self.invalid_cost
+                ),
+            ));
+        }
         // Worst-case |energy| (and every partial sum the solver forms) must fit comfortably.
         let max_unary = self.unary.iter().map(|x| x.unsigned_abs() as u128).max().unwrap_or(0);
         let max_pair = self.pairwise.iter().map(|x| x.unsigned_abs() as u128).max().unwrap_or(0);
         let pairs = num_sites as u128 * self.connectivity.offsets().len() as u128;
-        let bound = max_unary.saturating_mul(2 * num_sites as u128).saturating_add(
-            (4 * self.edge_weight.unsigned_abs() as u128).saturating_mul(max_pair).saturating_mul(pairs),
-        );
-        if bound > (1u128 << 62) {
+        let unary_bound = max_unary.saturating_mul(2 * num_sites as u128);
+        let pair_bound =
+            (4 * self.edge_weight.unsigned_abs() as u128).saturating_mul(max_pair).saturating_mul(pairs);
+        if unary_bound.saturating_add(pair_bound) > (1u128 << 62) {
+            // Name the part that makes the bound too large.
+            let (field, what) = if pair_bound >= unary_bound {
+                ("pairwise", "pairwise costs (times edge_weight)")
+            } else {
+                ("unary", "unary costs")
+            };
             return Err(Error::field(
-                "unary",
-                "costs are too large: energies of this problem could overflow 64-bit integers; scale them down",
+                field,
+                format!(
+                    "{what} are too large: energies of this problem could overflow 64-bit integers; scale them down"
+                ),
             ));
         }
         Ok(())
+    }
+
+    /// What makes the pairwise matrix V something other than a metric, for a note: an asymmetric
+    /// entry, a non-zero diagonal, a negative entry, or a violated triangle inequality (the first
+    /// of each found). Alpha-expansion is exact in its moves only for a metric; other terms are
+    /// truncated ([`GridSolution::truncated_terms`] counts those the moves met).
+    pub fn pairwise_issues(&self) -> Vec<String> {
+        let l = self.num_labels;
+        let v = |a: usize, b: usize| self.pairwise[a * l + b];
+        let mut out = Vec::new();
+        if let Some(a) = (0..l).find(|&a| v(a, a) != 0) {
+            out.push(format!("V[{a}][{a}] = {} is not 0", v(a, a)));
+        }
+        if let Some((a, b)) = (0..l).flat_map(|a| (0..l).map(move |b| (a, b))).find(|&(a, b)| v(a, b) < 0) {
+            out.push(format!("V[{a}][{b}] = {} is negative", v(a, b)));
+        }
+        if let Some((a, b)) =
+            (0..l).flat_map(|a| (a + 1..l).map(move |b| (a, b))).find(|&(a, b)| v(a, b) != v(b, a))
+        {
+            out.push(format!("V is not symmetric: V[{a}][{b}] = {}, V[{b}][{a}] = {}", v(a, b), v(b, a)));
+        }
+        // O(L³): at most 64³ for the shipped problems; skipped above 128 labels.
+        if l <= 128 {
+            'outer: for a in 0..l {
+                for b in 0..l {
+                    for c in 0..l {
+                        if v(a, c) as i128 > v(a, b) as i128 + v(b, c) as i128 {
+                            out.push(format!(
+                                "V breaks the triangle inequality: V[{a}][{c}] = {} > V[{a}][{b}] + V[{b}][{c}] = {}",
+                                v(a, c),
+                                v(a, b) as i128 + v(b, c) as i128
+                            ));
+                            break 'outer;
+                        }
+                    }
+                }
+            }
+        }
+        out
     }
 
     /// Number of sites nx·ny·nz.
@@ -521,6 +594,9 @@ impl GridProblem {
         let solve_ms = start.elapsed().as_secs_f64() * 1e3;
         let energy = self.energy_with_edges(&r.labels, &edges)?;
         let initial_energy = self.energy_with_edges(&init, &edges)?;
+        let forbidden_sites = (0..self.num_sites())
+            .filter(|&p| unary[p * l + r.labels[p] as usize] >= self.invalid_cost)
+            .count();
         Ok(GridSolution {
             dims: self.dims,
             num_labels: l,
@@ -535,6 +611,8 @@ impl GridProblem {
             accepted_moves: r.accepted_moves,
             truncated_terms: r.truncated_terms,
             termination: r.termination,
+            forbidden_sites,
+            pairwise_issues: self.pairwise_issues(),
             solve_ms,
         })
     }

@@ -114,12 +114,24 @@ pub fn category_from_path(path: &Path) -> Category {
 /// The inputs named by files and directories: a `.json` file is read as a manifest, a directory
 /// contributes every mesh file below it (sorted), a mesh file itself; categories come from the
 /// manifest or the parent folders.
+///
+/// Every model is studied once: a file named twice (directly, through a directory, a manifest
+/// or a symbolic link) keeps its first occurrence, and a directory reached again through a
+/// symbolic link (a link to a parent makes a cycle) is not walked again. The study averages
+/// models per category, so a model counted twice would weigh twice. [`collect_inputs_noting`]
+/// also returns the repeats that were dropped.
 pub fn collect_inputs(paths: &[PathBuf]) -> Result<Vec<SparsityInput>> {
+    Ok(collect_inputs_noting(paths)?.0)
+}
+
+/// [`collect_inputs`], with the paths dropped as repeats of an earlier input.
+pub fn collect_inputs_noting(paths: &[PathBuf]) -> Result<(Vec<SparsityInput>, Vec<PathBuf>)> {
     let mut out = Vec::new();
+    let mut visited_dirs = std::collections::HashSet::new();
     for p in paths {
         if p.is_dir() {
             let mut files = Vec::new();
-            walk(p, &mut files)?;
+            walk(p, &mut files, &mut visited_dirs)?;
             files.sort();
             out.extend(files.into_iter().map(|path| {
                 let category = category_from_path(&path);
@@ -133,17 +145,34 @@ pub fn collect_inputs(paths: &[PathBuf]) -> Result<Vec<SparsityInput>> {
             return Err(OffsetsError::Input { path: p.clone(), message: "no such file or directory".into() });
         }
     }
-    Ok(out)
+    let mut seen = std::collections::HashSet::new();
+    let mut repeats = Vec::new();
+    out.retain(|input| {
+        // A path that cannot be resolved (a manifest entry that does not exist) is kept: the
+        // study reports it as skipped with the reason.
+        let key = std::fs::canonicalize(&input.path).unwrap_or_else(|_| input.path.clone());
+        let first = seen.insert(key);
+        if !first {
+            repeats.push(input.path.clone());
+        }
+        first
+    });
+    Ok((out, repeats))
 }
 
-fn walk(dir: &Path, out: &mut Vec<PathBuf>) -> Result<()> {
+fn walk(dir: &Path, out: &mut Vec<PathBuf>, visited: &mut std::collections::HashSet<PathBuf>) -> Result<()> {
+    let canonical = std::fs::canonicalize(dir)
+        .map_err(|e| OffsetsError::Input { path: dir.to_path_buf(), message: e.to_string() })?;
+    if !visited.insert(canonical) {
+        return Ok(());
+    }
     let entries = std::fs::read_dir(dir)
         .map_err(|e| OffsetsError::Input { path: dir.to_path_buf(), message: e.to_string() })?;
     for e in entries {
         let path =
             e.map_err(|e| OffsetsError::Input { path: dir.to_path_buf(), message: e.to_string() })?.path();
         if path.is_dir() {
-            walk(&path, out)?;
+            walk(&path, out, visited)?;
         } else if path
             .extension()
             .and_then(|e| e.to_str())
@@ -483,5 +512,25 @@ mod tests {
         assert_eq!(category_from_path(Path::new("/d/natural/x/b.off")), Category::Natural);
         assert_eq!(category_from_path(Path::new("/d/other/c.off")), Category::Unknown);
         assert_eq!(Category::parse("Man_Made"), Some(Category::ManMade));
+    }
+
+    #[test]
+    fn every_model_is_collected_once_through_repeats_and_link_cycles() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let made = dir.path().join("man-made");
+        std::fs::create_dir(&made).expect("mkdir");
+        let a = made.join("a.off");
+        std::fs::write(&a, "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n").expect("write");
+        std::fs::write(made.join("b.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").expect("write");
+        std::fs::write(made.join("notes.txt"), "not a mesh").expect("write");
+        #[cfg(unix)]
+        std::os::unix::fs::symlink("..", made.join("up")).expect("symlink to the parent: a cycle");
+        let (inputs, repeats) =
+            collect_inputs_noting(&[dir.path().to_path_buf(), a.clone(), made.join(".").join("a.off")])
+                .expect("collect");
+        let names: Vec<_> = inputs.iter().map(|i| i.path.file_name().unwrap().to_owned()).collect();
+        assert_eq!(names, ["a.off", "b.obj"], "{inputs:?}");
+        assert!(inputs.iter().all(|i| i.category == Category::ManMade));
+        assert_eq!(repeats.len(), 2, "the two direct repeats of a.off: {repeats:?}");
     }
 }

@@ -937,7 +937,23 @@ fn grid_rejects_bad_files() {
         (
             r#"{"format":"mrf_grid_v1","dims":[1,1,2],"num_labels":2,"connectivity":6,"unary":[0,1,2,3],
                "pairwise":[[0,9223372036854775807],[1,0]],"edge_weight":9223372036854775807}"#,
-            "unary",
+            "pairwise",
+        ),
+        // Only the pairwise costs are too large: the error names them, not the unary.
+        (
+            r#"{"format":"mrf_grid_v1","dims":[1,1,2],"num_labels":2,"connectivity":6,"unary":[0,1,2,3],
+               "pairwise":[[0,9223372036854775807],[9223372036854775807,0]]}"#,
+            "pairwise",
+        ),
+        (
+            r#"{"format":"mrf_grid_v1","dims":[1,1,2],"num_labels":2,"connectivity":6,"unary":[0,1,2,3],
+               "pairwise":[[0,1],[1,0]],"edge_weight":-1}"#,
+            "edge_weight",
+        ),
+        (
+            r#"{"format":"mrf_grid_v1","dims":[1,1,2],"num_labels":2,"connectivity":6,"unary":[0,1,2,3],
+               "pairwise":[[0,1],[1,0]],"invalid_cost":-1}"#,
+            "invalid_cost",
         ),
         // L² is never allocated before the rows are seen to hold L² numbers.
         (
@@ -955,6 +971,26 @@ fn grid_rejects_bad_files() {
     // The message names the field.
     let msg = GridProblem::from_json_str(cases[6].0).unwrap_err().to_string();
     assert!(msg.contains("`unary`") && msg.contains("expected"), "{msg}");
+}
+
+#[test]
+fn grid_solutions_report_forbidden_sites_and_non_metric_costs() {
+    // Site 1 has only forbidden labels; V is symmetric but breaks the triangle inequality.
+    let json = r#"{"format":"mrf_grid_v1","dims":[1,1,3],"num_labels":3,"connectivity":6,
+        "unary":[0,5,5, 1000000,1000000,1000000, 5,5,0],"invalid_cost":1000000,
+        "pairwise":[[0,1,10],[1,0,1],[10,1,0]]}"#;
+    let p = GridProblem::from_json_str(json).unwrap();
+    let s = p.solve(&AlphaExpansionOptions::default()).unwrap();
+    assert_eq!(s.forbidden_sites, 1, "{s:?}");
+    assert_eq!(s.pairwise_issues.len(), 1, "{:?}", s.pairwise_issues);
+    assert!(s.pairwise_issues[0].contains("triangle inequality"), "{:?}", s.pairwise_issues);
+    let asymmetric = json.replace("[[0,1,10],[1,0,1],[10,1,0]]", "[[0,1,2],[5,0,1],[2,1,0]]");
+    let issues = GridProblem::from_json_str(&asymmetric).unwrap().pairwise_issues();
+    assert!(issues.iter().any(|i| i.contains("not symmetric")), "{issues:?}");
+    // The shipped generator's truncated-linear costs are a metric, and every site has a label.
+    let g = generate_grid([4, 4, 4], 5, Connectivity::Six, 3);
+    assert!(g.pairwise_issues().is_empty(), "{:?}", g.pairwise_issues());
+    assert_eq!(g.solve(&AlphaExpansionOptions::default()).unwrap().forbidden_sites, 0);
 }
 
 #[test]

@@ -31,6 +31,7 @@ pub fn run(a: AlignArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         &[&a.source, &a.target],
         g.force,
     )?;
+    crate::output::check_output_formats(&[(a.output.as_deref(), crate::output::OutputKind::Model)])?;
     if !(a.trim > 0.0 && a.trim <= 1.0) {
         return Err(bad_input(format!("--trim {}: must be in (0, 1]", a.trim)));
     }

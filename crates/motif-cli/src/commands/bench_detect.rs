@@ -108,6 +108,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     };
     super::detect::validate_options(&options(Method::EmSc, g.seed))?;
     check_outputs(&[a.plot.as_deref(), a.json.json.as_deref()], &[], g.force)?;
+    crate::output::check_output_formats(&[(a.plot.as_deref(), crate::output::OutputKind::Png)])?;
     let bar = Bar::new(g.quiet);
     let eval = EvalOptions::default();
     let mut rows = Vec::new();

@@ -19,6 +19,7 @@ struct ConvertReport {
 
 pub fn run(a: ConvertArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     crate::output::check_outputs(&[Some(a.output()), a.json.json.as_deref()], &[&a.input], g.force)?;
+    crate::output::check_output_formats(&[(Some(a.output()), crate::output::OutputKind::Model)])?;
     let t = Instant::now();
     let model = super::read_model(&a.input)?;
     super::write_model(a.output(), &model, &[&a.input], g, &super::write_options(&a.encoding))?;

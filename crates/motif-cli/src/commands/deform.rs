@@ -64,6 +64,7 @@ pub fn run(a: DeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             .flatten()
             .collect();
     check_outputs(&[Some(&a.output), a.json.json.as_deref()], &inputs, g.force)?;
+    crate::output::check_output_formats(&[(Some(&a.output), crate::output::OutputKind::Model)])?;
     let t0 = Instant::now();
     let mesh = motif_core::io::read_mesh(&a.mesh)?;
     let annotation = match &a.symmetry {
@@ -104,6 +105,7 @@ pub fn run(a: DeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let bar = crate::progress::Bar::new(g.quiet);
     let mut session = bar
         .spin("precompute", || DeformSession::new(&mesh, &annotation, &options))
+        .map_err(with_flag_names)
         .with_context(|| match &a.symmetry {
             Some(s) => format!("{} with {}", a.mesh.display(), s.display()),
             None => a.mesh.display().to_string(),
@@ -191,9 +193,26 @@ pub fn run(a: DeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         let worst = report.handle_fit.iter().map(|f| f.max_error).fold(0.0, f64::max);
         println!("handle fit: largest sample error {:.2e} of the diagonal", worst);
         for w in &report.warnings {
-            println!("warning: {w}");
+            super::note(g, format!("warning: {w}"));
         }
-        eprintln!("wrote {}", report.output);
+        super::note(g, format!("wrote {}", report.output));
     }
     maybe_json(&a.json.json, &report)
+}
+
+/// An invalid option named as the library names it (`editing.iterations`) becomes the flag the
+/// user typed (`--iterations`).
+fn with_flag_names(e: motif_deform::DeformError) -> anyhow::Error {
+    if let motif_deform::DeformError::InvalidOption { name, message } = &e {
+        let flag = match *name {
+            "editing.alpha" => Some("--alpha"),
+            "editing.iterations" => Some("--iterations"),
+            "sampling.spacing" => Some("--radius / --samples"),
+            _ => None,
+        };
+        if let Some(flag) = flag {
+            return bad_input(format!("{flag}: {message}"));
+        }
+    }
+    e.into()
 }

@@ -15,6 +15,7 @@ pub fn run(a: EvalArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     }
     let inputs: Vec<&std::path::Path> = a.files.iter().map(|f| f.as_path()).collect();
     check_outputs(&[a.plot.as_deref(), a.json.json.as_deref()], &inputs, g.force)?;
+    crate::output::check_output_formats(&[(a.plot.as_deref(), crate::output::OutputKind::Png)])?;
     let options = EvalOptions { tau: a.tau, ..Default::default() };
     options.validate()?;
     let mut loaded = Vec::new();
@@ -29,7 +30,8 @@ pub fn run(a: EvalArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     if let Some(p) = &a.plot {
         plot_pr_and_stress(&summary, p)?;
     }
-    if !crate::output::json_on_stdout(&a.json.json) && !g.quiet {
+    // Results print even with --quiet (only notes are hidden), as for info and symmetry check.
+    if !crate::output::json_on_stdout(&a.json.json) {
         for (s, pair) in summary.scenes.iter().zip(a.files.chunks(2)) {
             println!(
                 "{}: P {:.3}  R {:.3}  F {:.3}  ({} detected classes / {} instances vs {} / {} annotated)",
@@ -59,7 +61,7 @@ pub fn run(a: EvalArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             print_per_class(&summary);
         }
         if let Some(p) = &a.plot {
-            eprintln!("wrote {}", p.display());
+            super::note(g, format!("wrote {}", p.display()));
         }
     }
     maybe_json(&a.json.json, &summary)

@@ -37,6 +37,7 @@ pub fn run(a: ExampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         &[],
         g.force,
     )?;
+    crate::output::check_output_formats(&[(Some(&output), crate::output::OutputKind::Model)])?;
     let ex = procedural::generate(&name, g.seed)?;
     let model = Model::from_mesh(&ex.mesh);
     super::write_model(&output, &model, &[], g, &super::write_options(&a.encoding))?;
@@ -119,6 +120,7 @@ fn run_scene(kind: SceneKind, output: &Path, a: &ExampleArgs, g: &GlobalArgs) ->
     };
     let parts: Vec<&Path> = a.parts.iter().map(|p| p.as_path()).collect();
     check_outputs(&[Some(output), a.gt.as_deref()], &parts, g.force)?;
+    crate::output::check_output_formats(&[(Some(output), crate::output::OutputKind::PointCloud)])?;
     let t = Instant::now();
     let mut scene = generate_scene(kind, &options)?;
     let seconds = t.elapsed().as_secs_f64();

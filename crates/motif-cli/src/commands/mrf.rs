@@ -47,6 +47,15 @@ pub fn solve(a: MrfSolveArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     if sol.truncated_terms > 0 {
         println!("  note         {} non-metric pairwise terms truncated", sol.truncated_terms);
     }
+    for issue in &sol.pairwise_issues {
+        println!("  note         {issue}: expansion moves are exact only for a metric");
+    }
+    if sol.forbidden_sites > 0 {
+        println!(
+            "  warning      {} site(s) keep a label of cost invalid_cost or more: no valid labelling was found there",
+            sol.forbidden_sites
+        );
+    }
     Ok(())
 }
 

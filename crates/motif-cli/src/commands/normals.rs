@@ -26,6 +26,7 @@ struct NormalsReport {
 
 pub fn run(a: NormalsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     crate::output::check_outputs(&[Some(a.output()), a.json.json.as_deref()], &[&a.input], g.force)?;
+    crate::output::check_output_formats(&[(Some(a.output()), crate::output::OutputKind::PointCloud)])?;
     let mut model = super::read_model(&a.input)?;
     let t = Instant::now();
     let orientation = match a.orientation {

@@ -3,7 +3,7 @@
 use anyhow::Context;
 use motif_retarget::offsets::{OffsetOptions, Repetition, analyze_offsets};
 use motif_retarget::plot::{plot_offsets, plot_sparsity};
-use motif_retarget::sparsity::{SparsityOptions, collect_inputs, sparsity_study};
+use motif_retarget::sparsity::{SparsityOptions, collect_inputs_noting, sparsity_study};
 
 use crate::cli::{GlobalArgs, OffsetsArgs, SparsityArgs};
 use crate::output::{bad_input, check_outputs, maybe_json};
@@ -11,6 +11,7 @@ use crate::progress::Bar;
 
 pub fn offsets(a: OffsetsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     check_outputs(&[a.plot.as_deref(), a.json.json.as_deref()], &[&a.mesh], g.force)?;
+    crate::output::check_output_formats(&[(a.plot.as_deref(), crate::output::OutputKind::Png)])?;
     if !(a.tau >= 0.0 && a.tau < 2.0) {
         return Err(bad_input(format!("--tau {}: in normalised units, between 0 and 2", a.tau)));
     }
@@ -67,10 +68,23 @@ pub fn offsets(a: OffsetsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
 }
 
 pub fn sparsity(a: SparsityArgs, g: &GlobalArgs) -> anyhow::Result<()> {
-    let inputs = collect_inputs(&a.inputs)?;
+    let (inputs, repeats) = collect_inputs_noting(&a.inputs)?;
+    if !repeats.is_empty() {
+        let shown: Vec<String> = repeats.iter().take(3).map(|p| p.display().to_string()).collect();
+        let more = if repeats.len() > 3 { format!(" and {} more", repeats.len() - 3) } else { String::new() };
+        super::note(
+            g,
+            format!(
+                "note: {} input(s) name a model already included and are counted once: {}{more}",
+                repeats.len(),
+                shown.join(", ")
+            ),
+        );
+    }
     let named: Vec<&std::path::Path> =
         a.inputs.iter().map(|p| p.as_path()).chain(inputs.iter().map(|m| m.path.as_path())).collect();
     check_outputs(&[a.plot.as_deref(), a.json.json.as_deref()], &named, g.force)?;
+    crate::output::check_output_formats(&[(a.plot.as_deref(), crate::output::OutputKind::Png)])?;
     if inputs.is_empty() {
         return Err(bad_input("no meshes found in the given inputs"));
     }

@@ -146,6 +146,10 @@ fn preview_camera(mesh: &TriMesh, principal: &[[f64; 3]]) -> ([f64; 3], [f64; 3]
 pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let t0 = Instant::now();
     check_outputs(&[Some(&a.output), a.preview.as_deref(), a.json.json.as_deref()], &[&a.mesh], g.force)?;
+    crate::output::check_output_formats(&[
+        (Some(&a.output), crate::output::OutputKind::Model),
+        (a.preview.as_deref(), crate::output::OutputKind::Png),
+    ])?;
     let mesh = motif_core::io::read_mesh(&a.mesh)?;
     let given = a.offsets.as_deref().map(parse_offsets).transpose()?;
     let target = match &a.target_size {

@@ -31,6 +31,7 @@ const MAX_SAMPLES: usize = 50_000_000;
 
 pub fn run(a: SampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     crate::output::check_outputs(&[Some(a.output()), a.json.json.as_deref()], &[&a.input], g.force)?;
+    crate::output::check_output_formats(&[(Some(a.output()), crate::output::OutputKind::PointCloud)])?;
     if let Some(r) = a.radius {
         if !(r > 0.0 && r.is_finite()) {
             return Err(bad_input(format!("--radius {r}: must be a positive number")));

@@ -119,6 +119,21 @@ pub fn check(a: SymmetryCheckArgs, _g: &GlobalArgs) -> anyhow::Result<()> {
             }
         }
     }
+    // A symmetry that could not even be resolved (not a rigid motion, a region out of range, an
+    // infinite group) is bad input, as `deform` treats it: exit 2, naming what is wrong.
+    let malformed: Vec<String> = report
+        .symmetries
+        .iter()
+        .filter(|s| !s.ok)
+        .filter_map(|s| s.problem.as_ref().map(|p| format!("symmetry \"{}\": {p}", s.name)))
+        .collect();
+    if !malformed.is_empty() {
+        return Err(crate::output::bad_input(format!(
+            "{}: {}",
+            a.annotation.display(),
+            malformed.join("; ")
+        )));
+    }
     if !report.ok {
         anyhow::bail!(
             "{}: the annotation does not fit {} within its tolerance",

@@ -218,6 +218,26 @@ impl FaceSink {
         }
     }
 
+    /// Adds one triangle strip (indices already validated): triangle `i` is `s[i], s[i+1],
+    /// s[i+2]`, every other one reversed so that all face the same way. Triangles with a repeated
+    /// vertex are left out without a warning: strips use them on purpose to turn or to join.
+    pub(crate) fn add_strip(&mut self, strip: &[u32], pos: impl FnOnce() -> Position) {
+        if strip.is_empty() {
+            return;
+        }
+        self.source_faces += 1;
+        let before = self.triangles.len();
+        for (i, w) in strip.windows(3).enumerate() {
+            let (a, b, c) = if i % 2 == 0 { (w[0], w[1], w[2]) } else { (w[1], w[0], w[2]) };
+            if a != b && b != c && a != c {
+                self.triangles.push([a, b, c]);
+            }
+        }
+        if self.triangles.len() == before {
+            self.degenerate(pos);
+        }
+    }
+
     fn degenerate(&mut self, pos: impl FnOnce() -> Position) {
         self.degenerate_faces += 1;
         if self.first_degenerate.is_none() {

@@ -422,6 +422,9 @@ struct Assembly {
     colors: Option<Vec<[u8; 3]>>,
     missing_normals: bool,
     missing_colors: bool,
+    /// Some primitive has normals / colours (dropping them is then worth a warning).
+    any_normals: bool,
+    any_colors: bool,
     faces: FaceSink,
     skipped_lines: usize,
     dropped_indices: usize,
@@ -440,10 +443,10 @@ impl Assembly {
                 self.dropped_indices
             ));
         }
-        if self.missing_normals {
+        if self.missing_normals && self.any_normals {
             warnings.push("dropped normals: some primitives have none".to_string());
         }
-        if self.missing_colors {
+        if self.missing_colors && self.any_colors {
             warnings.push("dropped colours: some primitives have none".to_string());
         }
         if self.skinned {
@@ -643,6 +646,8 @@ impl Reader<'_, '_> {
         }
 
         let (cof, det) = cofactor3(world);
+        out.any_normals |= prim.get(&Semantic::Normals).is_some();
+        out.any_colors |= prim.get(&Semantic::Colors(0)).is_some();
         match prim.get(&Semantic::Normals) {
             Some(na) if !out.missing_normals => {
                 let (v, _, _) = self.floats(&na, &format!("NORMAL of {what}"), &[Dimensions::Vec3])?;

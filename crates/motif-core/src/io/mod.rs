@@ -194,6 +194,13 @@ impl Model {
 /// Reads a mesh or point cloud; the format is taken from the extension and checked against the
 /// content.
 pub fn read(path: &Path) -> Result<Model> {
+    if path.is_dir() {
+        let e = std::io::Error::new(
+            std::io::ErrorKind::IsADirectory,
+            "a directory, not a mesh or point cloud file",
+        );
+        return Err(Error::io(path, e));
+    }
     let format = Format::from_path(path)?;
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     let dir = match path.parent() {

@@ -470,7 +470,8 @@ fn read_body(header: &Header, body: &mut dyn Body, body_len: usize, path: &Path)
         }
         match e.name.as_str() {
             "vertex" => cloud = read_vertices(e, body, path, &mut warnings)?,
-            "face" => faces = read_faces(e, body, nv, path, &mut warnings)?,
+            "face" => read_faces(e, body, nv, path, &mut warnings, false, &mut faces)?,
+            "tristrips" => read_faces(e, body, nv, path, &mut warnings, true, &mut faces)?,
             _ => {
                 for r in 0..e.count {
                     for p in &e.props {
@@ -630,24 +631,29 @@ fn to_u8(v: Val, p: &Property) -> u8 {
     }
 }
 
+/// Reads a `face` element (polygons) or, with `strips`, a `tristrips` element (triangle strips
+/// whose lists may hold several strips separated by −1, as written by Stanford's and VCG's
+/// tools), adding the triangles to `faces`.
 fn read_faces(
     e: &Element,
     body: &mut dyn Body,
     nv: usize,
     path: &Path,
     warnings: &mut Vec<String>,
-) -> Result<FaceSink> {
+    strips: bool,
+    faces: &mut FaceSink,
+) -> Result<()> {
     let list = e.props.iter().position(|p| {
         matches!(p.name.as_str(), "vertex_indices" | "vertex_index") && matches!(p.kind, Kind::List(..))
     });
     let Some(list) = list else {
-        warnings.push("ignored the face element: it has no vertex_indices list".to_string());
+        warnings.push(format!("ignored the {} element: it has no vertex_indices list", e.name));
         for r in 0..e.count {
             for p in &e.props {
                 skip_property(body, p).map_err(|err| context(path, err, e, r))?;
             }
         }
-        return Ok(FaceSink::default());
+        return Ok(());
     };
     if let Kind::List(_, it) = e.props[list].kind {
         if !it.is_int() {
@@ -658,7 +664,7 @@ fn read_faces(
             ));
         }
     }
-    let mut faces = FaceSink::with_capacity(e.count as usize);
+    faces.triangles.reserve(e.count as usize);
     let mut polygon: Vec<u32> = Vec::with_capacity(8);
     for r in 0..e.count {
         let start = body.position();
@@ -678,6 +684,10 @@ fn read_faces(
                 let v = body.scalar(it).map_err(|err| context(path, err, e, r))?;
                 match v {
                     Val::I(idx) if idx >= 0 && (idx as u64) < nv as u64 => polygon.push(idx as u32),
+                    Val::I(-1) if strips => {
+                        faces.add_strip(&polygon, || start);
+                        polygon.clear();
+                    }
                     _ => {
                         return Err(perr(
                             path,
@@ -688,9 +698,13 @@ fn read_faces(
                 }
             }
         }
-        faces.add(&polygon, || start);
+        if strips {
+            faces.add_strip(&polygon, || start);
+        } else {
+            faces.add(&polygon, || start);
+        }
     }
-    Ok(faces)
+    Ok(())
 }
 
 /// The header of a written file, and the type chosen for each attribute.

@@ -25,7 +25,8 @@ pub(super) fn read(bytes: &[u8], path: &Path) -> Result<Model> {
     // ASCII STL saved with a UTF-8 byte-order mark; a binary header may hold any bytes, so the
     // mark is dropped only when text follows it.
     let text = bytes.strip_prefix(super::obj::UTF8_BOM).unwrap_or(bytes);
-    let starts_solid = text.trim_ascii_start().starts_with(b"solid");
+    // Keywords are matched regardless of case: some exporters write `SOLID` / `FACET`.
+    let starts_solid = text.trim_ascii_start().get(..5).is_some_and(|h| h.eq_ignore_ascii_case(b"solid"));
     if starts_solid {
         match read_ascii(text, path) {
             Ok(m) => return Ok(m),
@@ -106,6 +107,15 @@ fn read_ascii(bytes: &[u8], path: &Path) -> Result<Model> {
         let pos = Position::Line(ln);
         let mut toks = tokens(line);
         let Some(key) = toks.next() else { continue };
+        // Keywords in any case (`FACET NORMAL`, `Vertex`); at most 8 bytes, lowered on the stack.
+        let mut lowered = [0u8; 8];
+        let key: &[u8] = if key.len() <= lowered.len() {
+            lowered[..key.len()].copy_from_slice(key);
+            lowered[..key.len()].make_ascii_lowercase();
+            &lowered[..key.len()]
+        } else {
+            key
+        };
         match key {
             b"solid" => {
                 check_utf8(path, ln, line, "ASCII STL")?;
