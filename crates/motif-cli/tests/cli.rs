@@ -256,6 +256,25 @@ fn detected_copies_of_a_mesh_part_make_an_exact_symmetry_annotation() {
     assert!(rep["report"]["vertex_snap"]["snapped"].as_u64().unwrap() > 0, "{}", rep["report"]);
     let o = motif(&["symmetry", "check", "cubes.off", "a.json"], d.path());
     assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    // Blocks that differ in detail (the procedural facade's windows, detected at F about 0.5):
+    // what is not an exact copy of its class's first instance, or holds no vertex, is left out of
+    // the annotation with a warning, so what is written always passes the check (it used to hold
+    // instances that select no vertex, which the check refuses to load).
+    assert!(motif(&["example", "facade", "f.obj"], d.path()).status.success());
+    let o = motif(
+        &["detect", "f.obj", "-o", "f.json", "--as-symmetry", "f.sym.json", "--mesh-samples", "100000"],
+        d.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = motif(&["symmetry", "check", "f.obj", "f.sym.json"], d.path());
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    // Out-of-range options are refused, not quietly changed (0 rounds ran as 1).
+    for (flag, value) in [("--classes", "0"), ("--mesh-samples", "3"), ("--max-features", "0")] {
+        let o = motif(&["detect", "cubes.off", "-o", "x.json", flag, value], d.path());
+        assert_eq!(o.status.code(), Some(2), "{flag} {value}: {}", stderr(&o));
+        assert!(stderr(&o).contains(flag), "{flag}: {}", stderr(&o));
+    }
+    assert!(!d.path().join("x.json").exists());
 }
 
 #[test]
@@ -456,6 +475,22 @@ fn align_recovers_a_known_motion_and_demo_runs() {
         let got = m[k][3].as_f64().unwrap();
         assert!((got - want).abs() < 1e-6, "translation {k}: {got} vs {want}");
     }
+    // A target of degenerate triangles along a line has no planes: point-to-plane would read
+    // every residual as 0 and call any rotation a perfect fit; it aligns point-to-point instead.
+    let mut line = String::from("OFF\n21 19 0\n");
+    for i in 0..21 {
+        line.push_str(&format!("{} 0 0\n", i as f64 * 0.05));
+    }
+    for i in 0..19 {
+        line.push_str(&format!("3 {} {} {}\n", i, i + 1, i + 2));
+    }
+    std::fs::write(d.path().join("line.off"), line).unwrap();
+    let o = motif(&["align", "a.obj", "line.off", "--json"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("point-to-point instead"), "{}", stderr(&o));
+    let r = json_of(&o);
+    assert_eq!(r["options"]["metric"], "PointToPoint", "{r}");
+    assert!(r["rmse"].as_f64().unwrap() > 0.01, "the chair does not lie on a line: {r}");
     let o = motif(&["--quiet", "demo", "--out", "demo", "--json", "demo.json"], d.path());
     assert!(o.status.success(), "{}", stderr(&o));
     let rep: serde_json::Value =
@@ -694,10 +729,30 @@ fn retarget_adds_shelf_cells_and_refuses_models_without_repetition() {
     // The evidence is the verdict's own reason, with the histogram's figures and where to look.
     assert!(stderr(&o).contains("histogram peak") && stderr(&o).contains("--plot PNG"), "{}", stderr(&o));
     assert!(!d.path().join("g.obj").exists());
-    let o =
-        motif(&["retarget", "gear.obj", "--target-size", "3,3,1", "--plain-resize", "-o", "g.obj"], d.path());
+    let o = motif(
+        &[
+            "retarget",
+            "gear.obj",
+            "--target-size",
+            "3,3,1",
+            "--plain-resize",
+            "-o",
+            "g.obj",
+            "--preview",
+            "g.png",
+        ],
+        d.path(),
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("as asked") && !stderr(&o).contains("flat along"), "{}", stderr(&o));
+    // The preview is drawn for a plain resize too (it used to be skipped without a word).
+    assert_eq!(&std::fs::read(d.path().join("g.png")).unwrap()[1..4], b"PNG");
+    // A given offset longer than the model makes copies that do not overlap: refused.
+    let o =
+        motif(&["retarget", "shelf.obj", "--offsets", "1e6,0,0", "--steps", "1", "-o", "far.obj"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("would not overlap"), "{}", stderr(&o));
+    assert!(!d.path().join("far.obj").exists());
     // A flat disk cannot be given a thickness: said so, not "as asked".
     let mut disk = String::from("OFF\n41 40 0\n0 0 0\n");
     for i in 0..40 {
@@ -718,6 +773,37 @@ fn retarget_adds_shelf_cells_and_refuses_models_without_repetition() {
         "{}",
         stderr(&o)
     );
+    // In millimetres-to-metres units (×10⁻³) the shelf grows the same way: --steps counts the
+    // offsets by model axis, not by their support, which the sample decides (x 427, y 432 there).
+    let text = std::fs::read_to_string(d.path().join("shelf.obj")).unwrap();
+    let scaled: String = text
+        .lines()
+        .map(|l| match l.strip_prefix("v ") {
+            Some(v) => {
+                let c: Vec<f64> = v.split_whitespace().map(|x| x.parse::<f64>().unwrap() * 1e-3).collect();
+                format!("v {} {} {}\n", c[0], c[1], c[2])
+            }
+            None => format!("{l}\n"),
+        })
+        .collect();
+    std::fs::write(d.path().join("small.obj"), scaled).unwrap();
+    for (file, unit) in [("shelf.obj", 1.0), ("small.obj", 1e-3)] {
+        let out = format!("grown_{file}");
+        let o = motif(&["retarget", file, "--steps", "2,1", "-o", &out], d.path());
+        assert!(o.status.success(), "{file}: {}", stderr(&o));
+        let (a, b) = (
+            json_of(&motif(&["info", file, "--json"], d.path())),
+            json_of(&motif(&["info", &out, "--json"], d.path())),
+        );
+        let size = |j: &serde_json::Value, k: usize| {
+            j["bbox_max"][k].as_f64().unwrap() - j["bbox_min"][k].as_f64().unwrap()
+        };
+        assert!(
+            (size(&b, 0) - size(&a, 0) - 2.0 * 0.42 * unit).abs() < 1e-6 * unit,
+            "{file}: two cells wider"
+        );
+        assert!((size(&b, 1) - size(&a, 1) - 0.37 * unit).abs() < 1e-6 * unit, "{file}: one cell taller");
+    }
     // Shrinking below one cell is refused.
     let o = motif(&["retarget", "shelf.obj", "--steps", "-9,0", "-o", "x.obj"], d.path());
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
@@ -1227,8 +1313,9 @@ fn retarget_along_offsets_given_by_the_user() {
     let o = motif(&["retarget", "gear.obj", "--steps", "1", "-o", "g0.obj"], d.path());
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("--offsets X,Y,Z"), "{}", stderr(&o));
+    // (The gear is 0.076 across: a given offset must be shorter, or the copies would not touch.)
     let o =
-        motif(&["retarget", "gear.obj", "--offsets", "0.5,0,0", "--steps", "1", "-o", "g1.obj"], d.path());
+        motif(&["retarget", "gear.obj", "--offsets", "0.05,0,0", "--steps", "1", "-o", "g1.obj"], d.path());
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(d.path().join("g1.obj").exists());
     // Bad vectors: a clear error naming the option, exit 2, no output.

@@ -138,7 +138,7 @@ pub struct IcpResult {
     pub transform: Mat4,
     /// Root mean square residual over the inliers of the final transform, in input units:
     /// Euclidean distances for point-to-point, distances to the target tangent planes for
-    /// point-to-plane.
+    /// point-to-plane (Euclidean distances where a target normal is zero).
     pub rmse: f64,
     /// Fraction of source points that are inliers at the final transform (within
     /// `max_correspondence_distance` and kept by trimming).
@@ -332,11 +332,13 @@ impl Correspondences {
             .map(|&i| {
                 let (p, j, d2) = self.pairs[i as usize];
                 match normals {
-                    Some(n) => {
+                    // A target point without a normal (zero: a degenerate neighbourhood) has no
+                    // plane; its residual is the distance itself, not 0.
+                    Some(n) if norm(n[j as usize]) > 0.0 => {
                         let r = plane_residual(p, target[j as usize], n[j as usize]);
                         r * r
                     }
-                    None => d2,
+                    _ => d2,
                 }
             })
             .sum();

@@ -163,6 +163,16 @@ impl DetectOptions {
             let v = self.instances.box_trim;
             return bad("instances.box_trim", format!("must be at least 0 and below 0.5, got {v}"));
         }
+        if self.mdl_rounds == 0 {
+            return bad("mdl_rounds", "must be at least 1 (one round finds the first class)".into());
+        }
+        if self.mesh_samples < MIN_MESH_SAMPLES {
+            let v = self.mesh_samples;
+            return bad("mesh_samples", format!("must be at least {MIN_MESH_SAMPLES}, got {v}"));
+        }
+        if self.preprocess.max_features == 0 {
+            return bad("preprocess.max_features", "must be at least 1".into());
+        }
         if !(self.mdl_min_saving.is_finite() && self.mdl_min_saving >= 0.0) {
             let v = self.mdl_min_saving;
             return bad("mdl_min_saving", format!("must be finite and ≥ 0, got {v}"));
@@ -334,24 +344,73 @@ impl Detection {
     /// The classes as a `motif_symmetry_v1` annotation of instance sets (regions are the instance
     /// boxes), so a detection can drive symmetry-preserving deformation.
     pub fn as_symmetry(&self) -> SymmetryAnnotation {
+        self.as_symmetry_selecting(None).0
+    }
+
+    /// [`Self::as_symmetry`] for the mesh the detection ran on (`vertices`, its vertex
+    /// positions): an annotation's region must select vertices of the mesh it annotates, so an
+    /// instance whose box holds none (a box inside one large triangle of a wall) is left out, and
+    /// a class left with fewer than two instances too. Returns the annotation and a note per
+    /// omission.
+    pub fn as_symmetry_on_mesh(&self, vertices: &[motif_core::Point3]) -> (SymmetryAnnotation, Vec<String>) {
+        self.as_symmetry_selecting(Some(vertices))
+    }
+
+    fn as_symmetry_selecting(
+        &self,
+        vertices: Option<&[motif_core::Point3]>,
+    ) -> (SymmetryAnnotation, Vec<String>) {
         let mut a = SymmetryAnnotation::default();
+        let mut notes = Vec::new();
         for (ci, c) in self.result.classes.iter().enumerate() {
-            let instances = c
-                .instances
+            let name = c.name.clone().unwrap_or_else(|| format!("class_{ci}"));
+            let holds_vertex = |i: &DetectedInstance| {
+                vertices.is_none_or(|v| {
+                    v.iter().any(|p| (0..3).all(|k| p[k] >= i.bbox_min[k] && p[k] <= i.bbox_max[k]))
+                })
+            };
+            let kept: Vec<&DetectedInstance> = c.instances.iter().filter(|i| holds_vertex(i)).collect();
+            let dropped = c.instances.len() - kept.len();
+            if kept.len() < 2 {
+                if dropped > 0 {
+                    notes.push(format!(
+                        "{name}: left out of the symmetry annotation: {dropped} of its {} instance boxes hold no \
+                         mesh vertex, which leaves fewer than two",
+                        c.instances.len()
+                    ));
+                }
+                if !c.instances.is_empty() && vertices.is_some() {
+                    continue;
+                }
+            } else if dropped > 0 {
+                notes.push(format!(
+                    "{name}: {dropped} of its {} instance boxes hold no mesh vertex and are left out of the \
+                     symmetry annotation",
+                    c.instances.len()
+                ));
+            }
+            // The first instance kept is the template: transforms are re-based onto it, so that
+            // its own is the identity as the format asks (the partial maps T_a·T_b⁻¹ between
+            // instances are unchanged).
+            let identity = motif_core::geometry::IDENTITY4;
+            let base = kept.first().map_or(identity, |i| {
+                motif_core::procedural::rigid_inverse(&i.transform.unwrap_or(identity))
+            });
+            let instances = kept
                 .iter()
                 .map(|i| SymmetryInstance {
                     region: Region::Aabb { min: i.bbox_min, max: i.bbox_max },
-                    transform: i.transform.unwrap_or(motif_core::geometry::IDENTITY4),
+                    transform: motif_core::geometry::mat4_mul(&i.transform.unwrap_or(identity), &base),
                 })
                 .collect();
-            a.symmetries.push(Symmetry {
-                name: c.name.clone().unwrap_or_else(|| format!("class_{ci}")),
-                kind: SymmetryKind::Instances { instances },
-            });
+            a.symmetries.push(Symmetry { name, kind: SymmetryKind::Instances { instances } });
         }
-        a
+        (a, notes)
     }
 }
+
+/// Fewest points [`detect_mesh`] samples on a mesh ([`DetectOptions::mesh_samples`]).
+pub const MIN_MESH_SAMPLES: usize = 100;
 
 /// Detects building blocks in a mesh: samples `mesh_samples` points on its surface (with face
 /// normals) and runs [`detect`]; instance point indices refer to those samples.
@@ -362,7 +421,7 @@ pub fn detect_mesh(
     progress: &dyn Progress,
 ) -> Result<Detection> {
     o.validate()?;
-    let s = sample_surface(mesh, o.mesh_samples.max(100), o.seed)?;
+    let s = sample_surface(mesh, o.mesh_samples, o.seed)?;
     let mut cloud = PointCloud::from_positions(s.points);
     cloud.normals = Some(s.normals);
     let mut d = detect(&cloud, scene, o, progress, false)?;
@@ -412,6 +471,16 @@ pub fn detect(
         ));
         report.seconds.total = t0.elapsed().as_secs_f64();
         return Ok(empty(report, pre.features));
+    }
+    // The dictionary keeps at most a quarter as many words as features (dictionary::build); a
+    // request for more words than features is a mistake worth naming.
+    let n = pre.features.len();
+    if o.dictionary.words > n {
+        report.warnings.push(format!(
+            "{} words asked for {n} features: the dictionary has {} (at most a quarter of the features)",
+            o.dictionary.words,
+            (n / 4).max(1)
+        ));
     }
     let t1 = Instant::now();
     progress.start("HOC descriptors", 0);

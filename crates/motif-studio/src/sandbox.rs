@@ -54,6 +54,27 @@ impl Sandbox {
         if p.is_absolute() { p.to_path_buf() } else { self.root.join(p) }
     }
 
+    /// Refuses a path that leaves the root with `..` components applied lexically. Used when the
+    /// path does not resolve, so that a path outside the root is refused the same way whether
+    /// or not it exists (otherwise the message would tell a client which files exist outside).
+    fn lexically_inside(&self, path: &str) -> Result<()> {
+        let mut out = PathBuf::new();
+        for c in self.joined(path).components() {
+            match c {
+                Component::ParentDir => {
+                    out.pop();
+                }
+                Component::CurDir => {}
+                other => out.push(other),
+            }
+        }
+        if out.starts_with(&self.root) {
+            Ok(())
+        } else {
+            Err(StudioError::OutsideRoot { path: shorten(path), root: self.root.clone() })
+        }
+    }
+
     fn inside(&self, path: &str, resolved: PathBuf) -> Result<PathBuf> {
         if resolved.starts_with(&self.root) {
             Ok(resolved)
@@ -65,9 +86,13 @@ impl Sandbox {
     /// Resolves a file to read: it must exist, be a regular file and lie under the root.
     pub fn resolve_read(&self, path: &str) -> Result<PathBuf> {
         Self::check_text(path)?;
-        let resolved = self.joined(path).canonicalize().map_err(|e| StudioError::BadPath {
-            path: shorten(path),
-            problem: format!("cannot open: {e}"),
+        let resolved = self.joined(path).canonicalize().map_err(|e| {
+            // A path outside the root that does not exist is refused as outside, as one that
+            // exists is.
+            self.lexically_inside(path).err().unwrap_or_else(|| StudioError::BadPath {
+                path: shorten(path),
+                problem: format!("cannot open: {e}"),
+            })
         })?;
         let resolved = self.inside(path, resolved)?;
         if !resolved.is_file() {
@@ -91,7 +116,9 @@ impl Sandbox {
             _ => return Err(bad("needs a file name")),
         };
         let parent = joined.parent().ok_or_else(|| bad("needs a file name"))?;
-        let parent = parent.canonicalize().map_err(|e| bad(&format!("folder not found: {e}")))?;
+        let parent = parent.canonicalize().map_err(|e| {
+            self.lexically_inside(path).err().unwrap_or_else(|| bad(&format!("folder not found: {e}")))
+        })?;
         let parent = self.inside(path, parent)?;
         let target = parent.join(name);
         match std::fs::symlink_metadata(&target) {
@@ -141,6 +168,10 @@ mod tests {
         let s = Sandbox::new(&root).unwrap();
         assert!(s.resolve_read("a.obj").is_ok());
         assert!(matches!(s.resolve_read("../secret.txt"), Err(StudioError::OutsideRoot { .. })));
+        // Whether a file outside exists or not, the answer is the same.
+        assert!(matches!(s.resolve_read("../no-such-file.txt"), Err(StudioError::OutsideRoot { .. })));
+        assert!(matches!(s.resolve_write("../no-such-dir/x.obj", &[]), Err(StudioError::OutsideRoot { .. })));
+        assert!(matches!(s.resolve_read("no-such-file.obj"), Err(StudioError::BadPath { .. })));
         let abs = dir.path().join("secret.txt").display().to_string();
         assert!(matches!(s.resolve_read(&abs), Err(StudioError::OutsideRoot { .. })));
         assert!(s.resolve_read("").is_err());

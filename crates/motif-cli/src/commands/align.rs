@@ -63,6 +63,33 @@ pub fn run(a: AlignArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         ),
         (_, None) => Some(estimate_normals(&target.vertices.positions, &NormalsOptions::default())?),
     };
+    // Point-to-plane needs planes: when most target normals are zero (zero-area triangles,
+    // collinear or coincident points) every residual along them would read 0 and any rotation
+    // would "fit"; align point-to-point instead and say so.
+    let mut options = options;
+    let mut target_normals = target_normals;
+    if let Some(n) = &target_normals {
+        let zero = n
+            .iter()
+            .filter(|v| {
+                let l = motif_core::geometry::norm(**v);
+                l.is_nan() || l <= 0.0
+            })
+            .count();
+        if 2 * zero > n.len() {
+            super::note(
+                g,
+                format!(
+                    "warning: {}: {zero} of {} target normals are undetermined (degenerate triangles, or \
+                     collinear or coincident points); aligning point-to-point instead",
+                    a.target.display(),
+                    n.len()
+                ),
+            );
+            options.metric = IcpMetric::PointToPoint;
+            target_normals = None;
+        }
+    }
     let r = icp(
         &source.vertices.positions,
         &target.vertices.positions,

@@ -41,6 +41,9 @@ pub fn validate_options(o: &DetectOptions) -> anyhow::Result<()> {
                 "instances.bandwidth" => "--bandwidth",
                 "mdl_min_saving" => "--mdl-min-saving",
                 "extent.fit_trim" => "--fit-trim",
+                "mdl_rounds" => "--classes",
+                "mesh_samples" => "--mesh-samples",
+                "preprocess.max_features" => "--max-features",
                 other => other,
             };
             Err(crate::output::bad_input(format!("{flag} {message}")))
@@ -128,7 +131,17 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         super::write_model(p, &Model::from_point_cloud(labelled), &inputs, g, &Default::default())?;
     }
     if let Some(p) = &a.as_symmetry {
-        write_json(p, &detection.as_symmetry())?;
+        let annotation = if model.is_mesh() {
+            let (annotation, mut notes) = detection.as_symmetry_on_mesh(&model.vertices.positions);
+            let annotation = keep_exact_copies(&model.mesh(), annotation, &mut notes);
+            for n in notes {
+                super::note(g, format!("warning: {n}"));
+            }
+            annotation
+        } else {
+            detection.as_symmetry()
+        };
+        write_json(p, &annotation)?;
     }
     if !crate::output::json_on_stdout(&a.json.json) && !g.quiet {
         let r = &detection.report;
@@ -189,4 +202,61 @@ pub fn labelled_cloud(cloud: &PointCloud, d: &Detection) -> PointCloud {
     out.set_attribute("class", AttributeData::Int(class));
     out.set_attribute("instance", AttributeData::Int(instance));
     out
+}
+
+/// The detected classes of a mesh as an annotation `motif deform` accepts: an instance that is
+/// not a copy of its class's first instance within the annotation's tolerance (measured as
+/// `motif symmetry check` measures it) is left out, and so is a class left with fewer than two
+/// instances, each with a note. Detection finds building blocks that differ in detail; the
+/// annotation keeps the ones that are exact copies, which is what symmetry-preserving editing
+/// keeps exact.
+fn keep_exact_copies(
+    mesh: &motif_core::TriMesh,
+    annotation: motif_core::procedural::SymmetryAnnotation,
+    notes: &mut Vec<String>,
+) -> motif_core::procedural::SymmetryAnnotation {
+    use motif_core::procedural::{Symmetry, SymmetryKind};
+    let report = match motif_deform::residual::check_annotation(mesh, &annotation) {
+        Ok(r) => r,
+        Err(e) => {
+            notes.push(format!("the symmetry annotation could not be checked against the mesh: {e}"));
+            return annotation;
+        }
+    };
+    let tol = report.tolerance;
+    let mut kept =
+        motif_core::procedural::SymmetryAnnotation { symmetries: Vec::new(), ..annotation.clone() };
+    for (sym, check) in annotation.symmetries.into_iter().zip(&report.symmetries) {
+        if check.ok {
+            kept.symmetries.push(sym);
+            continue;
+        }
+        let SymmetryKind::Instances { instances } = sym.kind else { continue };
+        let n = instances.len();
+        // The check lists, for each instance a ≥ 1, the maps a → 0 and 0 → a.
+        let fits = |a: usize| {
+            check.transforms.get(2 * (a - 1)..2 * a).is_some_and(|t| t.iter().all(|t| t.residual <= tol))
+        };
+        let worst = check.transforms.iter().map(|t| t.residual).fold(0.0, f64::max);
+        let keep: Vec<_> =
+            instances.into_iter().enumerate().filter(|&(a, _)| a == 0 || fits(a)).map(|(_, i)| i).collect();
+        if keep.len() >= 2 {
+            notes.push(format!(
+                "{}: {} of its {n} instances are not copies of the first within the annotation's tolerance \
+                 ({tol:.0e} of the diagonal; up to {worst:.1e}) and are left out of the symmetry annotation",
+                sym.name,
+                n - keep.len()
+            ));
+            kept.symmetries
+                .push(Symmetry { name: sym.name, kind: SymmetryKind::Instances { instances: keep } });
+        } else {
+            let why = check.problem.clone().unwrap_or_else(|| {
+                format!(
+                    "no instance is a copy of the first within {tol:.0e} of the diagonal (up to {worst:.1e})"
+                )
+            });
+            notes.push(format!("{}: left out of the symmetry annotation: {why}", sym.name));
+        }
+    }
+    kept
 }

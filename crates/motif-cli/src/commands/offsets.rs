@@ -34,7 +34,8 @@ pub fn offsets(a: OffsetsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 println!("  {}; a plain resize is all that is possible", an.repetition.summary)
             }
         }
-        for (i, p) in an.principal.iter().enumerate() {
+        // Listed by model axis (x, y, z), the order `motif retarget --steps U,V,W` counts them in.
+        for (i, p) in an.axis_order.iter().map(|&k| &an.principal[k]).enumerate() {
             let len = |x: f64| motif_core::geometry::format_length(x, p.length_model, 6);
             println!(
                 "  principal {i}: [{}, {}, {}] (length {} model units), support {} ({:.1}% of offsets), overlap {:.1}%",

@@ -152,6 +152,29 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     ])?;
     let mesh = motif_core::io::read_mesh(&a.mesh)?;
     let given = a.offsets.as_deref().map(parse_offsets).transpose()?;
+    // A given offset at least as long as the model along it shifts copies clear of each other:
+    // nothing overlaps to stitch, and the "copies" come out as separate models.
+    if let Some(offsets) = &given {
+        for (k, v) in offsets.iter().enumerate() {
+            let u = normalize(*v).unwrap_or([1.0, 0.0, 0.0]);
+            let (lo, hi) = mesh
+                .positions
+                .iter()
+                .map(|p| dot(*p, u))
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), t| (lo.min(t), hi.max(t)));
+            let (len, extent) = (motif_core::geometry::norm(*v), hi - lo);
+            if len >= extent {
+                return Err(bad_input(format!(
+                    "--offsets: vector {} is {} long, but {} measures only {} along it: shifted copies \
+                     would not overlap (give the pitch of the repetition, in model units)",
+                    k + 1,
+                    motif_core::geometry::format_length(len, extent.max(len), 6),
+                    a.mesh.display(),
+                    motif_core::geometry::format_length(extent, extent.max(len), 6)
+                )));
+            }
+        }
+    }
     let target = match &a.target_size {
         Some(v) if v.len() == 3 && v.iter().all(|x| *x > 0.0 && x.is_finite()) => Some([v[0], v[1], v[2]]),
         Some(_) => return Err(bad_input("--target-size needs three positive sizes X,Y,Z")),
@@ -165,9 +188,32 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let analysis = analyze_features(&features, &offset_options, &bar).with_context(in_mesh)?;
     let analysis_ms = ms_since(t0);
     // Copies are added at the +v end of each offset: orient them so growth goes along +x/+y/+z.
-    let principal: Vec<[f64; 3]> = match &given {
+    // `solver_offsets` are in the analysis's order of selection, the order the session solves
+    // with; the user sees and counts steps in `principal`, by model axis (`axis_order`), so that
+    // `--steps U,V,W` grows the model the same way in any unit.
+    let solver_offsets: Vec<[f64; 3]> = match &given {
         Some(v) => orient_offsets(v),
         None => orient_offsets(&analysis.principal.iter().map(|p| p.offset_model).collect::<Vec<_>>()),
+    };
+    let order: Vec<usize> = match &given {
+        Some(_) => (0..solver_offsets.len()).collect(),
+        None => analysis.axis_order.clone(),
+    };
+    let principal: Vec<[f64; 3]> = order.iter().map(|&i| solver_offsets[i]).collect();
+    // Steps counted along `principal` ↔ steps along `solver_offsets`.
+    let to_solver = |s: [i32; 3]| {
+        let mut out = s;
+        for (k, &i) in order.iter().enumerate() {
+            out[i] = s[k];
+        }
+        out
+    };
+    let to_user = |s: [i32; 3]| {
+        let mut out = s;
+        for (k, &i) in order.iter().enumerate() {
+            out[k] = s[i];
+        }
+        out
     };
 
     if given.is_none() && (analysis.repetition.kind == Repetition::NoRepetition || principal.is_empty()) {
@@ -194,19 +240,30 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             triangles: mesh.triangles.clone(),
         };
         motif_core::io::write(&a.output, &Model::from_mesh(&out), &WriteOptions::default())?;
+        if let Some(p) = &a.preview {
+            let (view, up) = preview_camera(&mesh, &[]);
+            let title = format!("{}: plain resize", a.mesh.display());
+            motif_retarget::plot::plot_retarget_preview(&mesh, &out, view, up, &title, p)?;
+        }
         // A flat model cannot be given a size along its zero extent: say so, not "as asked".
         let flat: Vec<String> = (0..3)
             .filter(|&k| e[k] <= 0.0)
             .map(|k| format!("{} (asked {})", ["x", "y", "z"][k], size[k]))
             .collect();
         if !g.quiet {
+            let factor =
+                |f: f64| if (1e-3..1e4).contains(&f) { format!("{f:.4}") } else { format!("{f:.4e}") };
             eprintln!(
-                "{evidence}; scaled by {:.4} x {:.4} x {:.4} (--plain-resize){}",
-                s[0],
-                s[1],
-                s[2],
+                "{evidence}; scaled by {} x {} x {} (--plain-resize){}",
+                factor(s[0]),
+                factor(s[1]),
+                factor(s[2]),
                 if flat.is_empty() { " as asked".to_string() } else { String::new() }
             );
+            eprintln!("wrote {}", a.output.display());
+            if let Some(p) = &a.preview {
+                eprintln!("wrote {}", p.display());
+            }
         }
         if !flat.is_empty() {
             eprintln!(
@@ -272,11 +329,15 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         fill_holes: !a.no_fill,
         ..Default::default()
     };
-    let mut session =
-        RetargetSession::with_features(&mesh, &features, &principal, &options, &bar).with_context(in_mesh)?;
-    let res = session.retarget(steps, &bar).with_context(in_mesh)?;
-    let alternatives =
-        (res.report.infinite_seams > 0).then(|| clean_alternatives(&mut session, steps, principal.len()));
+    let mut session = RetargetSession::with_features(&mesh, &features, &solver_offsets, &options, &bar)
+        .with_context(in_mesh)?;
+    let res = session.retarget(to_solver(steps), &bar).with_context(in_mesh)?;
+    let alternatives = (res.report.infinite_seams > 0).then(|| {
+        clean_alternatives(&mut session, to_solver(steps), principal.len())
+            .into_iter()
+            .map(to_user)
+            .collect::<Vec<_>>()
+    });
     motif_core::io::write(&a.output, &Model::from_mesh(&res.mesh), &WriteOptions::default())?;
     if let Some(p) = &a.preview {
         let (view, up) = preview_camera(&mesh, &principal);

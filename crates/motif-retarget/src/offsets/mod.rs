@@ -153,6 +153,11 @@ pub enum Density {
     },
 }
 
+/// The axis (0, 1, 2 for x, y, z) along which `v` has its largest component, the first on ties.
+fn dominant_axis(v: Point3) -> usize {
+    (0..3).fold(0, |k, a| if v[a].abs() > v[k].abs() { a } else { k })
+}
+
 /// Options of the offset analysis. Lengths are in normalised units (the model's largest
 /// dimension spans [−1, 1], thesis 4.3).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -497,6 +502,14 @@ pub struct OffsetAnalysis {
     pub dominant: Vec<DominantOffset>,
     /// Up to three principal offsets (thesis 4.4), in order of selection.
     pub principal: Vec<PrincipalOffset>,
+    /// Indices into `principal` by the model axis each offset runs along most (x, then y, then
+    /// z; then by support): the order in which `motif offsets` lists them and `motif retarget
+    /// --steps U,V,W` counts them. The order of selection follows support, a count over a random
+    /// sample, so two offsets of similar support swap when the sample changes (the generated
+    /// shelf at 10⁻³ of its size: y 432 and x 427, against 386 and 420 at full size), and steps
+    /// counted in that order grew a model the other way in another unit.
+    #[serde(default)]
+    pub axis_order: Vec<usize>,
     /// Whether the model repeats, with the evidence.
     pub repetition: RepetitionVerdict,
     /// Bin side of the histogram, normalised units.
@@ -792,7 +805,13 @@ fn analyze(
             + features.timings.shot
             + t_start.elapsed().as_secs_f64(),
     };
+    let mut axis_order: Vec<usize> = (0..principal.len()).collect();
+    axis_order.sort_by_key(|&i| {
+        let p = &principal[i];
+        (dominant_axis(p.offset), std::cmp::Reverse(p.support), p.selected)
+    });
     Ok(OffsetAnalysis {
+        axis_order,
         normalisation: *nz,
         counts: SampleCounts {
             mesh_vertices: 0,
