@@ -463,9 +463,16 @@ pub fn detect(
         samples: None,
     };
     if pre.features.len() < o.min_features.max(8) {
+        // A smaller ε helps only while resampling drops points; at the data's own spacing it
+        // cannot add any.
+        let at_data_resolution = pre.points.len() as f64 >= 0.9 * cloud.len() as f64;
+        let advice = if at_data_resolution {
+            "ε is already at the data's spacing: try a lower kappa threshold, or denser data"
+        } else {
+            "try a smaller ε or a lower kappa threshold"
+        };
         report.warnings.push(format!(
-            "only {} salient features (need {}): too few for a dictionary, nothing detected; \
-             try a smaller ε or a lower kappa threshold",
+            "only {} salient features (need {}): too few for a dictionary, nothing detected; {advice}",
             pre.features.len(),
             o.min_features.max(8)
         ));

@@ -157,12 +157,7 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     if let Some(offsets) = &given {
         for (k, v) in offsets.iter().enumerate() {
             let u = normalize(*v).unwrap_or([1.0, 0.0, 0.0]);
-            let (lo, hi) = mesh
-                .positions
-                .iter()
-                .map(|p| dot(*p, u))
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), t| (lo.min(t), hi.max(t)));
-            let (len, extent) = (motif_core::geometry::norm(*v), hi - lo);
+            let (len, extent) = (motif_core::geometry::norm(*v), extent_along(&mesh, u));
             if len >= extent {
                 return Err(bad_input(format!(
                     "--offsets: vector {} is {} long, but {} measures only {} along it: shifted copies \
