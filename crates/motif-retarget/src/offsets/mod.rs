@@ -154,7 +154,7 @@ pub enum Density {
 }
 
 /// The axis (0, 1, 2 for x, y, z) along which `v` has its largest component, the first on ties.
-fn dominant_axis(v: Point3) -> usize {
+pub(crate) fn dominant_axis(v: Point3) -> usize {
     (0..3).fold(0, |k, a| if v[a].abs() > v[k].abs() { a } else { k })
 }
 

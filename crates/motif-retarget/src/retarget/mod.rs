@@ -825,7 +825,7 @@ pub fn orient_offsets(offsets: &[Point3]) -> Vec<Point3> {
     offsets
         .iter()
         .map(|v| {
-            let k = (0..3).fold(0, |k, a| if v[a].abs() > v[k].abs() { a } else { k });
+            let k = crate::offsets::dominant_axis(*v);
             if v[k] < 0.0 { [-v[0], -v[1], -v[2]] } else { *v }
         })
         .collect()
