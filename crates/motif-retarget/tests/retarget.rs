@@ -1009,6 +1009,10 @@ fn turned_real_models_stitch_into_consistent_closed_surfaces() {
         // over five planes, which capping left open until its chords were chosen over all planes
         // at once.
         ("man-made/cgal_cheese.off@axis", [1, 1, 1], 1),
+        // Two copies' sections touching along a voxel edge (820 open edges before the chords
+        // could run twice along a line): closed as two solids sharing that edge.
+        ("man-made/cgal_cheese.off", [1, 0, 2], 2),
+        ("man-made/cgal_cheese.off", [2, 1, 0], 2),
         ("man-made/oscad_example019_fence.stl", [3, 0, 0], 0),
         ("man-made/mcad_gridbeam_shelf.stl", [1, 1, 0], 0),
         // Turned, the fins' pitch (3.8 mm) is the first principal offset (the second axis-aligned).
