@@ -392,10 +392,13 @@ fn writers_reject_models_they_cannot_store() {
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0, "refused writes leave no files");
 }
 
-/// A random point cloud or mesh with every kind of PLY data.
+/// A random point cloud or mesh with every kind of PLY data. Coordinates span the range reading
+/// accepts (`io::MAX_COORDINATE`), down to the smallest normal numbers; the first two points are
+/// 1 apart, so that the model is never too small to be read (`io::MIN_EXTENT`).
 fn arb_model() -> impl Strategy<Value = Model> {
-    let coord =
-        prop_oneof![Just(0.0), Just(-0.0), -1e300f64..1e300, -1.0f64..1.0, proptest::num::f64::NORMAL];
+    let normal =
+        proptest::num::f64::NORMAL.prop_filter("inside the range read", |x| x.abs() <= io::MAX_COORDINATE);
+    let coord = prop_oneof![Just(0.0), Just(-0.0), -1e40f64..1e40, -1.0f64..1.0, normal];
     (3usize..40)
         .prop_flat_map(move |n| {
             (
@@ -410,7 +413,9 @@ fn arb_model() -> impl Strategy<Value = Model> {
                 proptest::collection::vec([0..n as u32, 0..n as u32, 0..n as u32], 0..60),
             )
         })
-        .prop_map(|(positions, normals, colors, ints, floats, tris)| {
+        .prop_map(|(mut positions, normals, colors, ints, floats, tris)| {
+            positions[0] = [1.0, 0.0, 0.0];
+            positions[1] = [0.0, 0.0, 0.0];
             let mut cloud = PointCloud { positions, normals, colors, attributes: vec![] };
             cloud.set_attribute("segment", AttributeData::Int(ints.into_iter().map(i64::from).collect()));
             cloud.set_attribute("weight", AttributeData::Float(floats));
@@ -442,5 +447,26 @@ proptest! {
             n.iter().map(|v| v.map(|c| c as f32 as f64)).collect::<Vec<_>>()
         });
         prop_assert_eq!(&back.vertices.normals, &as_f32);
+    }
+}
+
+#[test]
+fn coordinates_outside_the_range_motif_computes_in_are_refused_on_reading() {
+    // A shelf at 10²⁰⁰ used to be resized with vertices welded that should not be (distances
+    // squared overflow); such files are now refused with the vertex and a remedy.
+    let big = b"v 0 0 0\nv 2e200 0 0\nv 0 1 0\nf 1 2 3\n";
+    let e = io::read_from_bytes(big, Format::Obj, Path::new("big.obj")).unwrap_err().to_string();
+    assert!(
+        e.contains("big.obj") && e.contains("vertex 1") && e.contains("2e200") && e.contains("rescale"),
+        "{e}"
+    );
+    let tiny = b"v 0 0 0\nv 1e-60 0 0\nv 0 1e-60 0\nf 1 2 3\n";
+    let e = io::read_from_bytes(tiny, Format::Obj, Path::new("tiny.obj")).unwrap_err().to_string();
+    assert!(e.contains("tiny.obj") && e.contains("1e-60 across") && e.contains("rescale"), "{e}");
+    // Inside the range, and a single point (no extent), are read.
+    for ok in
+        [&b"v 0 0 0\nv 1e30 0 0\nv 0 1e30 0\nf 1 2 3\n"[..], b"v 1e-30 0 0\nv 1e-30 0 0\n", b"v 0 0 0\n"]
+    {
+        assert!(io::read_from_bytes(ok, Format::Obj, Path::new("ok.obj")).is_ok());
     }
 }

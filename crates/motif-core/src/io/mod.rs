@@ -236,8 +236,49 @@ fn read_impl(bytes: &[u8], format: Format, path: &Path, base_dir: Option<&Path>)
     if model.vertices.is_empty() {
         return Err(common::perr(path, Position::Whole, "the file contains no vertices"));
     }
+    if let Some(message) = coordinate_range_problem(&model.vertices.positions) {
+        return Err(common::perr(path, Position::Whole, message));
+    }
     debug_assert!(validate_parts(&model.vertices, &model.triangles).is_ok());
     Ok(model)
+}
+
+/// Largest coordinate magnitude accepted on reading, in model units.
+///
+/// Motif's geometry works in f64 on squared distances and, in curvature and SHOT, on their
+/// products: on the generated shelf scaled by 10⁸⁰ or 10⁻⁸⁰ these overflow or underflow, and
+/// `motif retarget` welds vertices it should not (8 edges of four triangles), silently; at 10⁶⁰
+/// and 10⁻⁶⁰ its output is the same as at 1. The bounds leave 20 orders of magnitude to that, and
+/// any real unit (nanometres to light years, in metres) far inside.
+pub const MAX_COORDINATE: f64 = 1e40;
+
+/// Smallest extent (largest side of the bounding box) accepted on reading, in model units, for
+/// a model that is not a single point (see [`MAX_COORDINATE`]).
+pub const MIN_EXTENT: f64 = 1e-40;
+
+/// Why the model's coordinates are outside the range Motif computes in reliably, if they are.
+pub fn coordinate_range_problem(positions: &[crate::geometry::Point3]) -> Option<String> {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for (i, p) in positions.iter().enumerate() {
+        if let Some(c) = p.iter().find(|c| c.abs() > MAX_COORDINATE) {
+            return Some(format!(
+                "vertex {i} has the coordinate {c:e}, beyond ±{MAX_COORDINATE:e}: distances squared \
+                 overflow there; rescale the model (into metres or millimetres, say)"
+            ));
+        }
+        for d in 0..3 {
+            lo[d] = lo[d].min(p[d]);
+            hi[d] = hi[d].max(p[d]);
+        }
+    }
+    let extent = (0..3).map(|d| hi[d] - lo[d]).fold(0.0, f64::max);
+    (extent > 0.0 && extent < MIN_EXTENT).then(|| {
+        format!(
+            "the model is {extent:e} across, below {MIN_EXTENT:e}: distances squared underflow \
+             there; rescale the model (into metres or millimetres, say)"
+        )
+    })
 }
 
 /// When a file fails to parse and its content looks like another format, says so.

@@ -82,7 +82,10 @@ impl Lattice {
             if !o.iter().all(|c| c.is_finite()) {
                 return Err(bad(format!("offset {i} = {o:?} is not finite")));
             }
-            let len = norm(*o) * normalisation.scale;
+            // In normalised units first: squaring model units overflows for models far from the
+            // unit range (a shelf at 10²⁰⁰ had its offsets called of zero length).
+            let o_normalised = scale(*o, normalisation.scale);
+            let len = norm(o_normalised);
             // A cell smaller than 10⁻⁶ of the normalised model is certainly a mistake (and would
             // need more than 10¹² voxels).
             if len < 1e-6 {
@@ -91,7 +94,8 @@ impl Lattice {
                      sizes of the repetition, in model units"
                 )));
             }
-            let d = normalize(*o).ok_or_else(|| bad(format!("offset {i} = {o:?} has zero length")))?;
+            let d =
+                normalize(o_normalised).ok_or_else(|| bad(format!("offset {i} = {o:?} has zero length")))?;
             for (j, e) in dirs.iter().enumerate() {
                 let sin = norm(cross(*e, d));
                 if sin < MIN_SIN_ANGLE {

@@ -724,7 +724,8 @@ fn joint_chords(
             at[v].push((l, k));
         }
     }
-    let mut b: Vec<Vec<(i32, i32, usize)>> = lines.iter().map(|(_, ids)| vec![(0, 0, 0); ids.len()]).collect();
+    let mut b: Vec<Vec<(i32, i32, usize)>> =
+        lines.iter().map(|(_, ids)| vec![(0, 0, 0); ids.len()]).collect();
     let mut vars = 0usize;
     for v in 0..all.len() {
         match at[v][..] {
@@ -741,7 +742,9 @@ fn joint_chords(
                 // t = b_L1; the other two lines through L1's planes follow from those planes'
                 // equations; the third plane's must then hold.
                 let (a, bb) = lines[l1].0;
-                let through = |p: Plane| [(l2, k2), (l3, k3)].into_iter().find(|&(l, _)| lines[l].0.0 == p || lines[l].0.1 == p);
+                let through = |p: Plane| {
+                    [(l2, k2), (l3, k3)].into_iter().find(|&(l, _)| lines[l].0.0 == p || lines[l].0.1 == p)
+                };
                 let ((la, ka), (lb, kb)) = (through(a)?, through(bb)?);
                 if la == lb {
                     return None;
@@ -761,7 +764,8 @@ fn joint_chords(
                 }
                 let (sca, scb) = (sigma(c, ca), sigma(c, cb));
                 let holds = |t: i32| {
-                    sca * (b[la][ka].0 + b[la][ka].1 * t) + scb * (b[lb][kb].0 + b[lb][kb].1 * t) == need_at(c, v)
+                    sca * (b[la][ka].0 + b[la][ka].1 * t) + scb * (b[lb][kb].0 + b[lb][kb].1 * t)
+                        == need_at(c, v)
                 };
                 if !holds(0) || !holds(1) {
                     return None;
@@ -1011,76 +1015,76 @@ fn split_over_planes(
 
     // 3. Per plane, the chain on its lines: a forest, flows from the leaves up.
     let forest: Option<Vec<(Plane, usize, usize)>> = 'forest: {
-    let mut chords: Vec<(Plane, usize, usize)> = Vec::new();
-    for &p in &planes {
-        let mut uf = UnionFind::new(nodes.len());
-        let mut adjacent: Vec<Vec<usize>> = vec![Vec::new(); nodes.len()];
-        let mut need = vec![0i32; nodes.len()];
-        let mut present = vec![false; nodes.len()];
-        for (line, ids) in line_nodes.iter().filter(|(l, _)| l.0 == p || l.1 == p) {
-            for w in ids.windows(2) {
-                if !uf.union(w[0], w[1]) {
-                    break 'forest None;
-                }
-                adjacent[w[0]].push(w[1]);
-                adjacent[w[1]].push(w[0]);
-            }
-            for &i in ids {
-                present[i] = true;
-            }
-            let sign = if line.0 == p { 1 } else { -1 };
-            for &(x, d) in demand.iter().find(|l| l.0 == *line).map(|l| &l.1[..]).unwrap_or(&[]) {
-                let Some(i) = nodes.iter().position(|nd| nd.0 == Key::Vertex(x)) else {
-                    break 'forest None;
-                };
-                need[i] += sign * d;
-            }
-        }
-        let mut seen = vec![false; nodes.len()];
-        for root in (0..nodes.len()).filter(|&i| present[i]) {
-            if seen[root] {
-                continue;
-            }
-            let mut order = vec![(root, usize::MAX)];
-            seen[root] = true;
-            let mut i = 0;
-            while i < order.len() {
-                let (x, _) = order[i];
-                for &y in &adjacent[x] {
-                    if !seen[y] {
-                        seen[y] = true;
-                        order.push((y, x));
-                    }
-                }
-                i += 1;
-            }
-            for &(x, parent) in order.iter().rev() {
-                if parent == usize::MAX {
-                    if need[x] != 0 {
+        let mut chords: Vec<(Plane, usize, usize)> = Vec::new();
+        for &p in &planes {
+            let mut uf = UnionFind::new(nodes.len());
+            let mut adjacent: Vec<Vec<usize>> = vec![Vec::new(); nodes.len()];
+            let mut need = vec![0i32; nodes.len()];
+            let mut present = vec![false; nodes.len()];
+            for (line, ids) in line_nodes.iter().filter(|(l, _)| l.0 == p || l.1 == p) {
+                for w in ids.windows(2) {
+                    if !uf.union(w[0], w[1]) {
                         break 'forest None;
                     }
+                    adjacent[w[0]].push(w[1]);
+                    adjacent[w[1]].push(w[0]);
+                }
+                for &i in ids {
+                    present[i] = true;
+                }
+                let sign = if line.0 == p { 1 } else { -1 };
+                for &(x, d) in demand.iter().find(|l| l.0 == *line).map(|l| &l.1[..]).unwrap_or(&[]) {
+                    let Some(i) = nodes.iter().position(|nd| nd.0 == Key::Vertex(x)) else {
+                        break 'forest None;
+                    };
+                    need[i] += sign * d;
+                }
+            }
+            let mut seen = vec![false; nodes.len()];
+            for root in (0..nodes.len()).filter(|&i| present[i]) {
+                if seen[root] {
                     continue;
                 }
-                // ∂(x → parent) = parent − x, so the chord x → parent carries −need(subtree).
-                let f = -need[x];
-                if f.abs() > MAX_CROSSINGS {
-                    break 'forest None;
+                let mut order = vec![(root, usize::MAX)];
+                seen[root] = true;
+                let mut i = 0;
+                while i < order.len() {
+                    let (x, _) = order[i];
+                    for &y in &adjacent[x] {
+                        if !seen[y] {
+                            seen[y] = true;
+                            order.push((y, x));
+                        }
+                    }
+                    i += 1;
                 }
-                let chord = if f > 0 { (p, x, parent) } else { (p, parent, x) };
-                chords.extend(std::iter::repeat_n(chord, f.unsigned_abs() as usize));
-                need[parent] += need[x];
+                for &(x, parent) in order.iter().rev() {
+                    if parent == usize::MAX {
+                        if need[x] != 0 {
+                            break 'forest None;
+                        }
+                        continue;
+                    }
+                    // ∂(x → parent) = parent − x, so the chord x → parent carries −need(subtree).
+                    let f = -need[x];
+                    if f.abs() > MAX_CROSSINGS {
+                        break 'forest None;
+                    }
+                    let chord = if f > 0 { (p, x, parent) } else { (p, parent, x) };
+                    chords.extend(std::iter::repeat_n(chord, f.unsigned_abs() as usize));
+                    need[parent] += need[x];
+                }
             }
         }
-    }
-    // 4. The two planes through a line run their chords there opposite ways.
-    let mut net: HashMap<(usize, usize), i32, FixedState> = HashMap::default();
-    for &(_, a, b) in &chords {
-        *net.entry((a.min(b), a.max(b))).or_default() += if a < b { 1 } else { -1 };
-    }
-    if net.values().any(|&v| v != 0) {
-        break 'forest None;
-    }
-    Some(chords)
+        // 4. The two planes through a line run their chords there opposite ways.
+        let mut net: HashMap<(usize, usize), i32, FixedState> = HashMap::default();
+        for &(_, a, b) in &chords {
+            *net.entry((a.min(b), a.max(b))).or_default() += if a < b { 1 } else { -1 };
+        }
+        if net.values().any(|&v| v != 0) {
+            break 'forest None;
+        }
+        Some(chords)
     };
     // Where the lines close a cycle (a loop wrapping round a voxel: its planes' lines enclose a
     // face), the chain is not unique; it is chosen over all the loop's planes at once.
@@ -1532,9 +1536,8 @@ mod tests {
         for reversed in [false, true] {
             let mut positions: Vec<[f64; 3]> = ring.to_vec();
             positions.push([1.5; 3]);
-            let triangles: Vec<[u32; 3]> = (0..6u32)
-                .map(|k| if reversed { [6, (k + 1) % 6, k] } else { [6, k, (k + 1) % 6] })
-                .collect();
+            let triangles: Vec<[u32; 3]> =
+                (0..6u32).map(|k| if reversed { [6, (k + 1) % 6, k] } else { [6, k, (k + 1) % 6] }).collect();
             let mut m = TriMesh::new(positions, triangles).unwrap();
             let (lattice, grid) = cells([3, 3, 3]);
             let mut voxels = vec![0u32; m.triangles.len()];
@@ -1583,7 +1586,8 @@ mod tests {
         let mut area = [0.0; 2];
         for t in &m.triangles[fan..] {
             let [a, b, c] = t.map(|v| m.positions[v as usize]);
-            let axis = (0..2).find(|&d| [a, b, c].iter().all(|p| (p[d] - 1.0).abs() < 1e-12)).expect("on a plane");
+            let axis =
+                (0..2).find(|&d| [a, b, c].iter().all(|p| (p[d] - 1.0).abs() < 1e-12)).expect("on a plane");
             let (e, f) = ([b[0] - a[0], b[1] - a[1], b[2] - a[2]], [c[0] - a[0], c[1] - a[1], c[2] - a[2]]);
             let x = [e[1] * f[2] - e[2] * f[1], e[2] * f[0] - e[0] * f[2], e[0] * f[1] - e[1] * f[0]];
             area[axis] += 0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
