@@ -176,6 +176,28 @@ fn zero_normals_are_ignored_with_a_warning() {
     // Estimated and oriented outwards, the normals give the sphere's curvature +1, not -1.
     let k1 = json_of(&o)["k1"]["median"].as_f64().unwrap();
     assert!((k1 - 1.0).abs() < 0.05, "median k1 {k1}");
+
+    // The same sphere with its inward normals (as the file gives them) and every twentieth zero:
+    // only those are estimated, oriented like the file's around them, so the curvature is -1.
+    let mut ply = format!(
+        "ply\nformat ascii 1.0\nelement vertex {n}\nproperty double x\nproperty double y\nproperty double z\n\
+         property float nx\nproperty float ny\nproperty float nz\nend_header\n"
+    );
+    for i in 0..n {
+        let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+        let r = (1.0 - z * z).sqrt();
+        let phi = i as f64 * 2.399_963_229_728_653;
+        let (x, y) = (r * phi.cos(), r * phi.sin());
+        let normal = if i % 20 == 0 { [0.0; 3] } else { [-x, -y, -z] };
+        ply.push_str(&format!("{x} {y} {z} {} {} {}\n", normal[0], normal[1], normal[2]));
+    }
+    std::fs::write(d.path().join("inward.ply"), ply).unwrap();
+    let o = motif(&["curvature", "inward.ply", "k2.ply", "--json"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.contains("100 of 2000 normals are zero") && e.contains("those were estimated"), "{e}");
+    let k1 = json_of(&o)["k1"]["median"].as_f64().unwrap();
+    assert!((k1 + 1.0).abs() < 0.05, "median k1 {k1}");
 }
 
 #[test]

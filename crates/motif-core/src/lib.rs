@@ -33,4 +33,4 @@ pub mod spatial;
 pub use error::{Error, Result};
 pub use geometry::{Aabb, Point3};
 pub use mesh::TriMesh;
-pub use point_cloud::{Attribute, AttributeData, PointCloud};
+pub use point_cloud::{Attribute, AttributeData, NormalsRepair, PointCloud};

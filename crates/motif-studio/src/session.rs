@@ -822,9 +822,10 @@ pub fn detect_building_blocks(
         }
         Ok(d.result)
     } else {
-        // Zero normals (NaN ones read as zero) are estimated, as for a cloud without normals.
+        // Zero normals (NaN ones read as zero) are estimated from the points around them (all of
+        // them, as for a cloud without normals, when more than half are zero).
         let mut cloud = model.vertices.clone();
-        cloud.drop_degenerate_normals();
+        cloud.repair_degenerate_normals();
         Ok(motif_detect::detect(&cloud, name, &options, progress, false)?.result)
     }
 }

@@ -70,21 +70,33 @@ pub fn read_model(path: &Path) -> anyhow::Result<Model> {
 }
 
 /// Reads a model for a command that computes with it: the reader's warnings are shown (unless
-/// quiet), and zero normals make the command estimate them as for a file without normals
-/// ([`motif_core::PointCloud::drop_degenerate_normals`]), with a warning.
+/// quiet), and zero normals are estimated from the points around them, or, when more than half
+/// are zero, all of them as for a file without normals
+/// ([`motif_core::PointCloud::repair_degenerate_normals`]), with a warning.
 pub fn read_model_for_geometry(path: &Path, g: &crate::cli::GlobalArgs) -> anyhow::Result<Model> {
     let mut model = io::read(path)?;
     for w in &model.warnings {
         note(g, format!("warning: {}: {w}", path.display()));
     }
     let count = model.vertices.len();
-    let zero = model.vertices.drop_degenerate_normals();
-    if zero > 0 {
+    let repair = model.vertices.repair_degenerate_normals();
+    let zero = repair.degenerate;
+    if repair.dropped {
         note(
             g,
             format!(
                 "warning: {}: {zero} of {count} normals are zero (or were not finite); the file's normals are ignored",
                 path.display()
+            ),
+        );
+    } else if repair.estimated > 0 {
+        note(
+            g,
+            format!(
+                "warning: {}: {zero} of {count} normals are zero (or were not finite); those were estimated \
+                 from their {} nearest points and oriented like the file's normals around them",
+                path.display(),
+                motif_core::point_cloud::REPAIR_NEIGHBOURS
             ),
         );
     }
