@@ -176,12 +176,12 @@ pub enum StlEncodingArg {
 
 #[derive(Debug, Args)]
 pub struct EncodingArgs {
-    /// PLY encoding of the output.
-    #[arg(long, value_enum, default_value_t)]
-    pub ply_encoding: PlyEncodingArg,
-    /// STL encoding of the output.
-    #[arg(long, value_enum, default_value_t)]
-    pub stl_encoding: StlEncodingArg,
+    /// PLY encoding of the output [default: binary-le]
+    #[arg(long, value_enum)]
+    pub ply_encoding: Option<PlyEncodingArg>,
+    /// STL encoding of the output [default: binary]
+    #[arg(long, value_enum)]
+    pub stl_encoding: Option<StlEncodingArg>,
 }
 
 #[derive(Debug, Args)]

@@ -1351,3 +1351,17 @@ fn retarget_along_offsets_given_by_the_user() {
         assert!(!d.path().join("bad.obj").exists(), "{bad}");
     }
 }
+
+#[test]
+fn an_encoding_for_another_format_is_named_in_a_warning() {
+    let d = tmp();
+    assert!(motif(&["example", "shelf", "s.obj"], d.path()).status.success());
+    let o = motif(&["convert", "s.obj", "s.ply", "--stl-encoding", "ascii"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--stl-encoding applies to STL outputs only; s.ply"), "{}", stderr(&o));
+    let o = motif(&["convert", "s.obj", "s.stl", "--stl-encoding", "ascii"], d.path());
+    assert!(o.status.success() && !stderr(&o).contains("warning"), "{}", stderr(&o));
+    assert!(std::fs::read(d.path().join("s.stl")).unwrap().starts_with(b"solid"), "ASCII STL");
+    let o = motif(&["convert", "s.obj", "t.off", "--ply-encoding", "ascii"], d.path());
+    assert!(stderr(&o).contains("--ply-encoding applies to PLY outputs only; t.off"), "{}", stderr(&o));
+}

@@ -109,7 +109,13 @@ pub fn run(a: AlignArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 *v = motif_core::geometry::transform_vector(&r.transform, *v);
             }
         }
-        super::write_model(out, &moved, &[&a.source, &a.target], g, &super::write_options(&a.encoding))?;
+        super::write_model(
+            out,
+            &moved,
+            &[&a.source, &a.target],
+            g,
+            &super::write_options(&a.encoding, out, g),
+        )?;
     }
     let report = AlignReport {
         source: a.source.display().to_string(),

@@ -102,7 +102,13 @@ pub fn run(a: CurvatureArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         if v.normals.is_none() {
             v.normals = Some(pc.iter().map(|c| c.normal).collect());
         }
-        super::write_model(a.output(), &model, &[&a.input], g, &super::write_options(&a.encoding))?;
+        super::write_model(
+            a.output(),
+            &model,
+            &[&a.input],
+            g,
+            &super::write_options(&a.encoding, a.output(), g),
+        )?;
     }
     let fitted = pc.iter().filter(|c| c.status == CurvatureStatus::Fitted).count();
     let r = CurvatureReport {

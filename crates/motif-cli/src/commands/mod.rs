@@ -103,15 +103,29 @@ pub fn read_model_for_geometry(path: &Path, g: &crate::cli::GlobalArgs) -> anyho
     Ok(model)
 }
 
-/// The write options the user chose.
-pub fn write_options(e: &EncodingArgs) -> WriteOptions {
+/// The write options the user chose for `output`, with a warning when one of them does not apply
+/// to its format (`--stl-encoding ascii` for a PLY output used to be ignored without a word).
+pub fn write_options(e: &EncodingArgs, output: &Path, g: &crate::cli::GlobalArgs) -> WriteOptions {
+    let format = motif_core::io::Format::from_path(output).ok();
+    let (ply, stl) = (e.ply_encoding.is_some(), e.stl_encoding.is_some());
+    for (given, flag, applies, kind) in [
+        (ply, "--ply-encoding", format == Some(motif_core::io::Format::Ply), "PLY"),
+        (stl, "--stl-encoding", format == Some(motif_core::io::Format::Stl), "STL"),
+    ] {
+        if given && !applies {
+            note(
+                g,
+                format!("warning: {flag} applies to {kind} outputs only; {} is not one", output.display()),
+            );
+        }
+    }
     WriteOptions {
-        ply: match e.ply_encoding {
+        ply: match e.ply_encoding.unwrap_or_default() {
             PlyEncodingArg::Ascii => PlyEncoding::Ascii,
             PlyEncodingArg::BinaryLe => PlyEncoding::BinaryLittleEndian,
             PlyEncodingArg::BinaryBe => PlyEncoding::BinaryBigEndian,
         },
-        stl: match e.stl_encoding {
+        stl: match e.stl_encoding.unwrap_or_default() {
             StlEncodingArg::Binary => StlEncoding::Binary,
             StlEncodingArg::Ascii => StlEncoding::Ascii,
         },

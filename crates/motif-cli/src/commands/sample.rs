@@ -86,7 +86,7 @@ pub fn run(a: SampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         &Model::from_point_cloud(cloud),
         &[&a.input],
         g,
-        &super::write_options(&a.encoding),
+        &super::write_options(&a.encoding, a.output(), g),
     )?;
     let r = SampleReport {
         input: a.input.display().to_string(),
