@@ -1365,3 +1365,23 @@ fn an_encoding_for_another_format_is_named_in_a_warning() {
     let o = motif(&["convert", "s.obj", "t.off", "--ply-encoding", "ascii"], d.path());
     assert!(stderr(&o).contains("--ply-encoding applies to PLY outputs only; t.off"), "{}", stderr(&o));
 }
+
+#[test]
+fn descriptors_and_curvatures_of_which_none_is_valid_say_why() {
+    // A support radius far below the point spacing: the outputs are written, with a warning
+    // naming the cause and the remedy (it used to report "0 valid" and nothing more).
+    let d = tmp();
+    assert!(motif(&["example", "shelf", "s.obj"], d.path()).status.success());
+    let o =
+        motif(&["features", "shot", "s.obj", "-o", "f.json", "--radius", "1e-6", "--every", "1"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("none of the 984 descriptors is valid") && stderr(&o).contains("larger --radius")
+    );
+    let o = motif(&["curvature", "s.obj", "k.ply", "--radius", "1e-7"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("no point could be fitted") && stderr(&o).contains("radius 0.0000001"));
+    // With sensible parameters, no warning.
+    let o = motif(&["curvature", "s.obj", "k2.ply"], d.path());
+    assert!(o.status.success() && !stderr(&o).contains("warning"), "{}", stderr(&o));
+}

@@ -123,6 +123,20 @@ pub fn run(a: CurvatureArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         sign_convention: "k1 >= k2; positive where the surface bends away from the (outward) normal",
         ms,
     };
+    if r.fitted == 0 && r.points > 0 {
+        super::note(
+            g,
+            format!(
+                "warning: no point could be fitted: no neighbourhood ({}) holds enough points for a \
+                 quadratic (6 or more, spread over the surface); use a larger --radius or -k",
+                match neighbourhood {
+                    Neighbourhood::Radius(r) => format!("radius {r}"),
+                    Neighbourhood::Knn(k) => format!("{k} nearest points"),
+                    Neighbourhood::Rings(n) => format!("{n} rings"),
+                }
+            ),
+        );
+    }
     if !crate::output::json_on_stdout(&a.json.json) {
         super::note(
             g,
