@@ -21,7 +21,7 @@ use std::time::Instant;
 use axum::Router;
 use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade};
 use axum::extract::{ConnectInfo, State};
-use axum::http::{HeaderMap, StatusCode, Uri, header};
+use axum::http::{HeaderMap, Method, StatusCode, Uri, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
 use futures_util::{SinkExt, StreamExt};
@@ -49,7 +49,13 @@ pub(crate) fn router(app: Arc<App>) -> Router {
     Router::new().route("/ws", get(ws_handler)).fallback(static_handler).with_state(app)
 }
 
-async fn static_handler(uri: Uri) -> Response {
+async fn static_handler(method: Method, uri: Uri) -> Response {
+    // The page and its assets are read-only: other methods are refused (a POST used to get the
+    // page, 200), as static file servers do.
+    if method != Method::GET && method != Method::HEAD {
+        return (StatusCode::METHOD_NOT_ALLOWED, [(header::ALLOW, "GET, HEAD")], "method not allowed")
+            .into_response();
+    }
     match crate::assets::find(uri.path()) {
         Some(a) => (
             [

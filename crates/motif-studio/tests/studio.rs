@@ -623,3 +623,33 @@ async fn exports_can_be_sent_back_for_download() {
         .unwrap();
     assert_eq!(back.vertices.len(), n);
 }
+
+/// The raw HTTP response to `request` (sent to the server of `s`, connection closed after it).
+async fn http(s: &Server, request: &str) -> String {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let addr = s.url.trim_start_matches("ws://").trim_end_matches("/ws").to_string();
+    let mut stream = tokio::net::TcpStream::connect(&addr).await.unwrap();
+    let request = request.replace("{host}", &addr);
+    stream.write_all(request.as_bytes()).await.unwrap();
+    let mut out = Vec::new();
+    stream.read_to_end(&mut out).await.unwrap();
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_page_answers_get_and_refuses_other_methods() {
+    let s = start().await;
+    let get = http(&s, "GET / HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n").await;
+    assert!(get.starts_with("HTTP/1.1 200"), "{get}");
+    for method in ["POST", "PUT", "DELETE"] {
+        let r = http(
+            &s,
+            &format!(
+                "{method} / HTTP/1.1\r\nHost: {{host}}\r\nContent-Length: 0\r\nConnection: close\r\n\r\n"
+            ),
+        )
+        .await;
+        assert!(r.starts_with("HTTP/1.1 405"), "{method}: {r}");
+        assert!(r.to_ascii_lowercase().contains("allow: get, head"), "{method}: {r}");
+    }
+}
