@@ -777,7 +777,7 @@ fn joint_chords(
     if vars > MAX_JOINT_CORNERS {
         return None;
     }
-    // The least-length choice, each segment crossed at most once.
+    // The least-length choice, each segment crossed at most MAX_CROSSINGS times.
     let mut t = vec![-1i32; vars];
     let mut best: Option<(f64, Vec<i32>)> = None;
     'choices: loop {
