@@ -105,8 +105,60 @@ pub struct StudioArgs {
 #[derive(Debug, Args, Clone, Default)]
 pub struct JsonArg {
     /// Write a machine-readable JSON report (to FILE, or stdout when no FILE is given).
-    #[arg(long, value_name = "FILE", num_args = 0..=1, default_missing_value = "-")]
+    #[arg(long, value_name = "FILE", num_args = 0..=1, default_missing_value = "-", value_parser = json_report_path)]
     pub json: Option<PathBuf>,
+}
+
+/// A path for a `--json` report: [`json_path`], and not an existing file that holds one of the
+/// documents Motif reads (a detection result or ground truth, a symmetry annotation, handles, an
+/// MRF problem): `motif eval --json r.json g.json r2.json` took the result `r.json` as the report's
+/// file and overwrote it.
+pub fn json_report_path(value: &str) -> Result<PathBuf, String> {
+    let path = json_path(value)?;
+    let mut head = Vec::new();
+    if let Ok(f) = std::fs::File::open(&path) {
+        use std::io::Read;
+        let _ = f.take(1 << 16).read_to_end(&mut head);
+    }
+    let text = String::from_utf8_lossy(&head);
+    // The documents' first keys: reports start with neither.
+    let first_key =
+        |key: &str| text.trim_start().strip_prefix('{').is_some_and(|t| t.trim_start().starts_with(key));
+    let kind = if first_key("\"format\"")
+        && ["motif_symmetry_v1", "motif_handles_v1", "mrf_grid_v1"].iter().any(|f| text.contains(f))
+    {
+        Some("an annotation, handles or MRF problem")
+    } else if first_key("\"scene\"") && text.contains("\"classes\"") {
+        Some("a detection result or ground truth")
+    } else {
+        None
+    };
+    match kind {
+        Some(kind) => Err(format!(
+            "{value} holds {kind}, which a report would overwrite (did --json take an input file as \
+             its value? put --json after the inputs, or write --json=REPORT.json)"
+        )),
+        None => Ok(path),
+    }
+}
+
+/// A path a JSON document is written to: refused when its extension names a model or picture
+/// format. `--json` takes an optional value, so `motif offsets --json a.obj b.obj` read `a.obj`
+/// as the report's file and overwrote the input mesh with JSON; and `motif detect x.ply -o r.ply`
+/// wrote JSON into a `.ply`.
+pub fn json_path(value: &str) -> Result<PathBuf, String> {
+    let path = PathBuf::from(value);
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some(e @ ("obj" | "ply" | "off" | "stl" | "gltf" | "glb" | "png" | "jpg" | "jpeg" | "svg")) => {
+            Err(format!(
+                "a JSON document would be written to {value}, whose .{e} extension names a model or picture \
+             format (did --json take an input file as its value? put --json after the inputs, or \
+             write --json=FILE.json)"
+            ))
+        }
+        _ => Ok(path),
+    }
 }
 
 #[derive(Debug, Args)]
@@ -496,7 +548,7 @@ pub struct MrfGenerateArgs {
     #[arg(long, default_value_t = 6)]
     pub connectivity: u32,
     /// Output JSON file.
-    #[arg(short, long)]
+    #[arg(short, long, value_parser = json_path)]
     pub output: PathBuf,
 }
 
@@ -685,7 +737,7 @@ pub struct SymmetryDetectArgs {
     /// Input mesh.
     pub mesh: PathBuf,
     /// Output annotation (JSON, motif_symmetry_v1).
-    #[arg(short, long)]
+    #[arg(short, long, value_parser = json_path)]
     pub output: PathBuf,
     /// Accept a symmetry when the largest distance of transformed surface samples to the surface
     /// is below this fraction of the bounding-box diagonal.
@@ -799,13 +851,13 @@ pub struct DetectArgs {
     /// (sampled first).
     pub input: PathBuf,
     /// The detection (../shared/formats/detection.md): classes, instance boxes, transforms, points.
-    #[arg(short, long, value_name = "RESULT.json")]
+    #[arg(short, long, value_name = "RESULT.json", value_parser = json_path)]
     pub output: PathBuf,
     /// A PLY of the input points with `class` and `instance` labels (-1 for background) and colours.
     #[arg(long, value_name = "PLY")]
     pub labels: Option<PathBuf>,
     /// The classes as a motif_symmetry_v1 annotation of instance sets (for `motif deform`).
-    #[arg(long, value_name = "ANNOT.json")]
+    #[arg(long, value_name = "ANNOT.json", value_parser = json_path)]
     pub as_symmetry: Option<PathBuf>,
     /// Skip the EM refinement: spectral clustering on the initial dictionary (the thesis's "SC").
     #[arg(long)]
@@ -939,7 +991,7 @@ pub struct RigidIcpArgs {
     #[arg(long)]
     pub gt: PathBuf,
     /// Detection result (JSON, the schema motif eval reads).
-    #[arg(short, long)]
+    #[arg(short, long, value_parser = json_path)]
     pub output: PathBuf,
     /// Window grid step, in template diagonals.
     #[arg(long, default_value_t = 0.2)]

@@ -14,6 +14,7 @@ use clap::Parser;
 
 /// Exit quietly, like other Unix tools killed by SIGPIPE (status 141), when stdout is closed by a
 /// reader such as `head`: Rust ignores SIGPIPE and `println!` then panics on the broken pipe.
+/// Other failures to write stdout exit 1 with an error line.
 /// (Restoring the default signal handler would need `unsafe`, which the workspace forbids.)
 fn quiet_on_broken_pipe() {
     let default = std::panic::take_hook();
@@ -26,6 +27,12 @@ fn quiet_on_broken_pipe() {
             .unwrap_or("");
         if text.contains("Broken pipe") {
             std::process::exit(141);
+        }
+        // Any other failure to print results (a full disk, `> /dev/full`): an error line and
+        // exit 1, not a panic with a backtrace.
+        if let Some(reason) = text.strip_prefix("failed printing to stdout: ") {
+            eprintln!("error: writing to standard output failed: {reason}");
+            std::process::exit(1);
         }
         default(info);
     }));

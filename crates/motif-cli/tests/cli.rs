@@ -100,18 +100,27 @@ fn every_output_is_checked_before_any_work() {
         assert!(e.contains(says) && !e.contains("panicked"), "{args:?}: {e}");
     };
     // A report or a plot onto an input (the JSON report once replaced inputs silently).
-    refused(&["info", "s.obj", "--json", "s.obj"], "refusing to overwrite an input");
-    refused(&["convert", "s.obj", "o.ply", "--json", "s.obj"], "refusing to overwrite an input");
+    // A report onto a model file is refused whatever the file is; onto an input, too.
+    refused(&["info", "s.obj", "--json", "s.obj"], "names a model or picture format");
+    refused(&["convert", "s.obj", "o.ply", "--json", "s.obj"], "names a model or picture format");
+    std::fs::write(d.path().join("k.json"), "[1, 2, 3]").unwrap();
+    refused(&["mrf", "solve", "k.json", "--json", "k.json"], "refusing to overwrite an input");
+    assert_eq!(std::fs::read_to_string(d.path().join("k.json")).unwrap(), "[1, 2, 3]");
+    std::fs::remove_file(d.path().join("k.json")).unwrap();
     refused(&["sparsity", "s.obj", "--plot", "s.obj"], "refusing to overwrite an input");
     assert_eq!(std::fs::read(d.path().join("s.obj")).unwrap(), shelf, "input untouched");
     // Two outputs on one file: one would silently replace the other, so even --force refuses.
     refused(
-        &["convert", "s.obj", "c.obj", "--json", "./c.obj", "--force"],
-        "the same file given for two outputs",
+        &["retarget", "s.obj", "-o", "c.obj", "--steps", "1", "--preview", "p.png", "--json", "./p.png", "--force"],
+        "names a model or picture format",
     );
     refused(
         &["example", "windmill", "w.obj", "--annotation", "a.json", "--handles", "a.json"],
         "two outputs",
+    );
+    refused(
+        &["symmetry", "detect", "s.obj", "-o", "q.json", "--json", "./q.json", "--force"],
+        "the same file given for two outputs",
     );
     // A secondary output in a missing folder fails before the main output is written.
     refused(&["convert", "s.obj", "o.ply", "--json", "nodir/r.json"], "nodir does not exist");
@@ -1384,4 +1393,114 @@ fn descriptors_and_curvatures_of_which_none_is_valid_say_why() {
     // With sensible parameters, no warning.
     let o = motif(&["curvature", "s.obj", "k2.ply"], d.path());
     assert!(o.status.success() && !stderr(&o).contains("warning"), "{}", stderr(&o));
+}
+
+#[test]
+fn a_json_flag_that_takes_an_input_as_its_value_is_refused_and_nothing_is_overwritten() {
+    // `--json` takes an optional value: placed before the inputs it took the first one as its
+    // file and overwrote it with JSON (a mesh, or a detection result).
+    let d = tmp();
+    assert!(motif(&["example", "shelf", "a.obj"], d.path()).status.success());
+    assert!(motif(&["example", "fence", "b.obj"], d.path()).status.success());
+    let before = std::fs::read(d.path().join("a.obj")).unwrap();
+    for args in [&["offsets", "--json", "a.obj", "b.obj"][..], &["sparsity", "--json", "a.obj", "b.obj"]] {
+        let o = motif(args, d.path());
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains("did --json take an input file"), "{}", stderr(&o));
+    }
+    assert_eq!(std::fs::read(d.path().join("a.obj")).unwrap(), before, "the mesh is untouched");
+    // A JSON result written under a model extension is refused too.
+    let o = motif(&["mrf", "generate", "-o", "p.obj"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    // A detection result taken as the report's file.
+    assert!(
+        motif(&["example", "scene-facade", "f.ply", "--gt", "g.json", "--points", "3000"], d.path())
+            .status
+            .success()
+    );
+    let gt = std::fs::read(d.path().join("g.json")).unwrap();
+    std::fs::copy(d.path().join("g.json"), d.path().join("r.json")).unwrap();
+    let o = motif(&["eval", "--json", "g.json", "r.json", "r.json"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("holds a detection result or ground truth"), "{}", stderr(&o));
+    assert_eq!(std::fs::read(d.path().join("g.json")).unwrap(), gt);
+    // A report can still replace an earlier report of the same name.
+    for _ in 0..2 {
+        let o = motif(&["eval", "r.json", "g.json", "--json", "ev.json"], d.path());
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+}
+
+#[test]
+fn results_print_under_quiet_and_a_failing_stdout_is_an_error_not_a_panic() {
+    let d = tmp();
+    assert!(motif(&["example", "shelf", "s.obj"], d.path()).status.success());
+    let o = motif(&["-q", "offsets", "s.obj"], d.path());
+    assert!(o.status.success() && stdout(&o).contains("2 principal offsets"), "{}", stdout(&o));
+    if Path::new("/dev/full").exists() {
+        let full = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+        let o = Command::new(env!("CARGO_BIN_EXE_motif"))
+            .args(["offsets", "s.obj"])
+            .current_dir(d.path())
+            .stdout(full)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        assert!(stderr(&o).contains("writing to standard output failed") && !stderr(&o).contains("panicked"));
+    }
+}
+
+#[test]
+fn a_vertex_no_triangle_uses_does_not_hide_the_repetition() {
+    // One stray vertex far off widened the normalisation: "no repetition", and retarget failed.
+    let d = tmp();
+    assert!(motif(&["example", "shelf", "s.obj"], d.path()).status.success());
+    let mut text = std::fs::read_to_string(d.path().join("s.obj")).unwrap();
+    text.push_str("v 20 20 20\n");
+    std::fs::write(d.path().join("iso.obj"), text).unwrap();
+    let o = motif(&["offsets", "iso.obj"], d.path());
+    assert!(o.status.success() && stdout(&o).contains("2 principal offsets"), "{}{}", stdout(&o), stderr(&o));
+    let o = motif(&["retarget", "iso.obj", "-o", "r.obj", "--steps", "1,1", "--json", "r.json"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.path().join("r.json")).unwrap()).unwrap();
+    // The surface's vertices (the report said 0 here).
+    assert_eq!(r["offsets"]["counts"]["mesh_vertices"], 984, "{}", r["offsets"]["counts"]);
+}
+
+#[test]
+fn option_errors_speak_in_the_users_terms() {
+    let d = tmp();
+    assert!(motif(&["example", "shelf", "s.obj"], d.path()).status.success());
+    let o = motif(&["example", "nope", "x.obj"], d.path());
+    assert!(stderr(&o).contains("scene-facade") && stderr(&o).contains("shelf"), "{}", stderr(&o));
+    let o = motif(&["retarget", "s.obj", "-o", "r.obj", "--target-size", "0.1,0.1,0.1"], d.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--target-size 0.1,0.1,0.1 means --steps"), "{}", stderr(&o));
+    let o = motif(&["--force", "retarget", "s.obj", "-o", "r.obj", "--steps", "10000,0"], d.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--force does not lift"), "{}", stderr(&o));
+    assert!(motif(&["example", "scene-facade", "f.ply", "--points", "3000"], d.path()).status.success());
+    for (flag, value) in [("--epsilon", "-1"), ("--epsilon-abs", "0")] {
+        let o = motif(&["detect", "f.ply", "-o", "d.json", &format!("{flag}={value}")], d.path());
+        assert_eq!(o.status.code(), Some(2));
+        assert!(stderr(&o).contains(&format!("{flag} {value}")), "{}", stderr(&o));
+    }
+    let o = motif(&["mrf", "solve", "nope.json"], d.path());
+    assert_eq!(stderr(&o).matches("nope.json").count(), 1, "{}", stderr(&o));
+}
+
+#[test]
+fn sparsity_follows_the_seed() {
+    let d = tmp();
+    std::fs::create_dir(d.path().join("m")).unwrap();
+    assert!(motif(&["example", "shelf", "m/s.obj"], d.path()).status.success());
+    let seed_of = |seed: &str| {
+        let o = motif(&["--seed", seed, "sparsity", "m", "--json"], d.path());
+        assert!(o.status.success(), "{}", stderr(&o));
+        let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+        v.to_string()
+    };
+    let (a, b) = (seed_of("1"), seed_of("5"));
+    assert!(a.contains("\"seed\":1") && b.contains("\"seed\":5"), "{a}");
 }

@@ -84,6 +84,30 @@ impl TriMesh {
         Aabb::from_points(&self.positions)
     }
 
+    /// Bounding box of the surface: of the vertices some triangle uses (`None` without
+    /// triangles). A stray vertex no triangle uses (as some exporters leave) does not widen it.
+    pub fn surface_aabb(&self) -> Option<Aabb> {
+        let first = self.triangles.first()?[0];
+        let mut b = Aabb { min: self.positions[first as usize], max: self.positions[first as usize] };
+        for t in &self.triangles {
+            for &v in t {
+                b.grow(self.positions[v as usize]);
+            }
+        }
+        Some(b)
+    }
+
+    /// Whether some vertex is used by no triangle.
+    pub fn has_unreferenced_vertices(&self) -> bool {
+        let mut used = vec![false; self.positions.len()];
+        for t in &self.triangles {
+            for &v in t {
+                used[v as usize] = true;
+            }
+        }
+        used.iter().any(|u| !u)
+    }
+
     /// Length of the bounding-box diagonal (0 for an empty mesh).
     pub fn diagonal(&self) -> f64 {
         self.aabb().map_or(0.0, |b| b.diagonal())

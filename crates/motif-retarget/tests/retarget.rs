@@ -625,7 +625,9 @@ fn errors_are_reported() {
         &RetargetOptions { force: true, ..o.clone() },
         &NoProgress,
     ));
-    assert!(matches!(e, RetargetError::TooLarge { .. }), "{e}");
+    // Forced, the memory limit still holds, and the message does not offer --force.
+    assert!(matches!(e, RetargetError::TooLargeForMemory { .. }), "{e}");
+    assert!(e.to_string().contains("does not lift"), "{e}");
     let e = err(retarget(&ex.mesh, &[[1e-9, 0.0, 0.0]], [1, 0, 0], &o, &NoProgress));
     assert!(matches!(e, RetargetError::InvalidOffsets { .. }), "{e}");
     let tiny = [[0.001, 0.0, 0.0], [0.0, 0.001, 0.0], [0.0, 0.0, 0.001]];

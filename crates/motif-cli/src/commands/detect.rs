@@ -27,6 +27,18 @@ const PALETTE: [[u8; 3]; 10] = [
 /// Checks `o` before any input is read ([`DetectOptions::validate`]); a field out of range is
 /// named by its command-line flag.
 pub fn validate_options(o: &DetectOptions) -> anyhow::Result<()> {
+    // ε is checked here, in the user's terms: the library sees it only once multiplied by the
+    // diagonal (`--epsilon=-1` was reported as "epsilon … got -33.95").
+    let epsilon = match o.preprocess.epsilon {
+        Epsilon::Relative(r) => Some(("--epsilon", r, "of the bounding-box diagonal")),
+        Epsilon::Absolute(e) => Some(("--epsilon-abs", e, "in model units")),
+        Epsilon::Auto => None,
+    };
+    if let Some((flag, v, unit)) = epsilon
+        && !(v.is_finite() && v > 0.0)
+    {
+        return Err(crate::output::bad_input(format!("{flag} {v}: ε must be a positive number ({unit})")));
+    }
     match o.validate() {
         Ok(()) => Ok(()),
         Err(DetectError::InvalidOption { name, message }) => {

@@ -26,6 +26,11 @@ pub fn run(a: ExampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     if let Some(kind) = SceneKind::from_name(&name) {
         return run_scene(kind, &output, &a, g);
     }
+    if !procedural::names().contains(&name.as_str()) {
+        let all: Vec<&str> =
+            procedural::names().iter().copied().chain(scene_names().iter().copied()).collect();
+        return Err(bad_input(format!("unknown example {name:?}; valid names: {}", all.join(", "))));
+    }
     if a.gt.is_some() || a.difficulty.is_some() || a.points.is_some() || !a.parts.is_empty() {
         return Err(bad_input(format!(
             "--gt, --difficulty, --points and --parts apply to the benchmark scenes ({}), not to {name}",

@@ -1,6 +1,5 @@
 //! `motif mrf`: solve and generate grid MRF problems (`mrf_grid_v1`).
 
-use anyhow::Context;
 use motif_retarget::alpha_expansion::{AlphaExpansionOptions, CycleStrategy, LabelOrder, TieBreak};
 use motif_retarget::{Connectivity, generate_grid, solve_grid_file};
 
@@ -29,7 +28,17 @@ pub fn solve(a: MrfSolveArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         },
         ..Default::default()
     };
-    let sol = solve_grid_file(&a.problem, &options).with_context(|| a.problem.display().to_string())?;
+    let sol = match solve_grid_file(&a.problem, &options) {
+        Ok(sol) => sol,
+        Err(e) => {
+            // Named once: reading errors name the file already ("nope.json: nope.json: No such
+            // file" before).
+            let name = a.problem.display().to_string();
+            let named = e.to_string().starts_with(&name);
+            let e = anyhow::Error::from(e);
+            return Err(if named { e } else { e.context(name) });
+        }
+    };
     if a.json.json.is_some() {
         return maybe_json(&a.json.json, &sol);
     }

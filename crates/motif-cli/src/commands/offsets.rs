@@ -23,7 +23,8 @@ pub fn offsets(a: OffsetsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         let title = a.mesh.file_name().and_then(|n| n.to_str()).unwrap_or("model");
         plot_offsets(&an, title, p)?;
     }
-    if !crate::output::json_on_stdout(&a.json.json) && !g.quiet {
+    // The results print under --quiet too (as `info` and `eval` do); only the notes are quiet.
+    if !crate::output::json_on_stdout(&a.json.json) {
         println!("{}", a.mesh.display());
         // The verdict's own reasons (the discrete-period test decides, not the peak's share).
         match an.repetition.kind {
@@ -61,9 +62,9 @@ pub fn offsets(a: OffsetsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             an.dominant.len(),
             1e3 * an.timings.total
         );
-        if let Some(p) = &a.plot {
-            eprintln!("wrote {}", p.display());
-        }
+    }
+    if let Some(p) = &a.plot {
+        super::note(g, format!("wrote {}", p.display()));
     }
     maybe_json(&a.json.json, &an)
 }
@@ -89,7 +90,12 @@ pub fn sparsity(a: SparsityArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     if inputs.is_empty() {
         return Err(bad_input("no meshes found in the given inputs"));
     }
-    let options = SparsityOptions::default();
+    // The global --seed, as `motif offsets` uses it (the study's offsets used the library's
+    // default seed 0 whatever --seed said).
+    let options = SparsityOptions {
+        offsets: motif_retarget::offsets::OffsetOptions { seed: g.seed, ..Default::default() },
+        ..Default::default()
+    };
     let bar = Bar::new(g.quiet);
     let report = sparsity_study(&inputs, &options, &bar)?;
     let failed: Vec<_> = report.models.iter().filter(|m| m.error.is_some()).collect();
@@ -109,11 +115,11 @@ pub fn sparsity(a: SparsityArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     if let Some(p) = &a.plot {
         plot_sparsity(&report, p)?;
     }
-    if !crate::output::json_on_stdout(&a.json.json) && !g.quiet {
+    if !crate::output::json_on_stdout(&a.json.json) {
         println!("{}", report.table());
-        if let Some(p) = &a.plot {
-            eprintln!("wrote {}", p.display());
-        }
+    }
+    if let Some(p) = &a.plot {
+        super::note(g, format!("wrote {}", p.display()));
     }
     maybe_json(&a.json.json, &report)
 }

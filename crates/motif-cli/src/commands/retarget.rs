@@ -326,7 +326,24 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     };
     let mut session = RetargetSession::with_features(&mesh, &features, &solver_offsets, &options, &bar)
         .with_context(in_mesh)?;
-    let res = session.retarget(to_solver(steps), &bar).with_context(in_mesh)?;
+    let res = match session.retarget(to_solver(steps), &bar) {
+        Ok(res) => res,
+        // A size the user asked for, in the steps it was turned into (the error speaks of
+        // steps, which the user never gave).
+        Err(e) if a.steps.is_none() => {
+            let size = a.target_size.as_deref().unwrap_or_default();
+            let show = |v: Vec<String>| v.join(",");
+            return Err(anyhow::Error::from(e)
+                .context(format!(
+                    "--target-size {} means --steps {} along the principal offsets (`motif offsets {}` lists them)",
+                    show(size.iter().map(|x| x.to_string()).collect()),
+                    show(steps[..principal.len()].iter().map(|x| x.to_string()).collect()),
+                    a.mesh.display()
+                ))
+                .context(in_mesh()));
+        }
+        Err(e) => return Err(anyhow::Error::from(e).context(in_mesh())),
+    };
     let alternatives = (res.report.infinite_seams > 0).then(|| {
         clean_alternatives(&mut session, to_solver(steps), principal.len())
             .into_iter()

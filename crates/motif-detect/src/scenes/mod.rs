@@ -361,6 +361,10 @@ pub fn load_scene_part(path: &Path) -> Result<ScenePart> {
     if area.is_nan() || area <= 0.0 {
         return Err(bad("the mesh has no surface area to sample".into()));
     }
+    // Parts are placed and scaled by their bounding box: a vertex no triangle uses widened it
+    // (one stray vertex shrank the part until its instances held no points).
+    let mut mesh = mesh;
+    mesh.remove_unreferenced_vertices();
     let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "part".into());
     Ok(ScenePart { name, mesh })
 }

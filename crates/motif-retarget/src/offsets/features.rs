@@ -186,7 +186,9 @@ pub fn prepare_features(
     mesh.validate()?;
     let t0 = Instant::now();
     progress.start("sampling", 0);
-    let aabb = mesh.aabb().ok_or(OffsetsError::NoSurface)?;
+    // The surface's box: a vertex no triangle uses (one stray vertex far off) would otherwise
+    // shrink the model in normalised space until no offset passes the thresholds.
+    let aabb = mesh.surface_aabb().ok_or(OffsetsError::NoSurface)?;
     let normalisation = Normalisation::from_bounds(aabb.min, aabb.max)?;
     let positions: Vec<Point3> = mesh.positions.iter().map(|&p| normalisation.to_normalised(p)).collect();
     let norm_mesh = TriMesh::new(positions, mesh.triangles.clone())?;

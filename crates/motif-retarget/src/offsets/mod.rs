@@ -469,7 +469,8 @@ pub struct StageTimings {
 /// Counts of the sampled model.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct SampleCounts {
-    /// Mesh vertices (0 from [`analyze_features`], which does not see the mesh).
+    /// Mesh vertices that some triangle uses (the surface's; `motif retarget --json` reported 0
+    /// here, from [`analyze_features`]).
     pub mesh_vertices: usize,
     /// Dense points (SHOT support).
     pub dense: usize,
@@ -535,7 +536,6 @@ pub fn analyze_offsets(
     // The features are dropped here: keeping the matching distances for a retargeting MRF would
     // be wasted work.
     let mut a = analyze(&features, options, 0, progress)?;
-    a.counts.mesh_vertices = mesh.positions.len();
     a.timings.total = t0.elapsed().as_secs_f64();
     Ok(a)
 }
@@ -814,7 +814,7 @@ fn analyze(
         axis_order,
         normalisation: *nz,
         counts: SampleCounts {
-            mesh_vertices: 0,
+            mesh_vertices: features.mesh_vertices.len(),
             dense: features.dense.len(),
             features: features.len(),
             vertex_features: features.num_vertex_points,

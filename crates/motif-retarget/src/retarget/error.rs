@@ -88,6 +88,18 @@ pub enum RetargetError {
         /// The limit.
         limit: u128,
     },
+    /// The per-(voxel, label) tables would not fit in memory or in the graph's indices: a hard
+    /// limit, which `force` does not lift (the message of [`RetargetError::TooLarge`] offered
+    /// `--force` here too, to no effect).
+    #[error(
+        "the retargeting problem would have {value} voxel-label pairs, more than fit in memory (limit {limit}, which --force does not lift); use fewer steps or larger principal offsets"
+    )]
+    TooLargeForMemory {
+        /// Voxel-label pairs the tables would hold.
+        value: u128,
+        /// The hard limit.
+        limit: u128,
+    },
     /// An option is out of its valid range.
     #[error("invalid retargeting option `{name}`: {message}")]
     InvalidOption {

@@ -507,6 +507,17 @@ impl RetargetSession {
         if mesh.triangles.is_empty() {
             return Err(RetargetError::NoFaces { vertices: mesh.positions.len() });
         }
+        // Vertices no triangle uses are no part of the surface; one far off used to widen the
+        // normalisation and the grid (the offsets then found no repetition).
+        let cleaned;
+        let mesh = if mesh.has_unreferenced_vertices() {
+            let mut m = mesh.clone();
+            m.remove_unreferenced_vertices();
+            cleaned = m;
+            &cleaned
+        } else {
+            mesh
+        };
         let closed = stitch::mesh_stats(mesh).1 == 0;
         let (cap_openings, fill_holes) = (options.cap_openings && closed, options.fill_holes && closed);
         progress.start("voxelize", 0);
@@ -690,12 +701,7 @@ impl RetargetSession {
             grid_steps_wide.iter().fold(1u128, |a, s| a.saturating_mul(2 * s.unsigned_abs() as u128 + 1));
         let table = voxels.saturating_mul(labels).max(input_voxels.saturating_mul(differences));
         if table > MAX_TABLE_ENTRIES || voxels >= u32::MAX as u128 / 16 {
-            return Err(RetargetError::TooLarge {
-                what: "retargeting problem",
-                unit: "voxel-label pairs",
-                value: table,
-                limit: MAX_TABLE_ENTRIES,
-            });
+            return Err(RetargetError::TooLargeForMemory { value: table, limit: MAX_TABLE_ENTRIES });
         }
         let grid_steps = grid_steps_wide.map(|s| s as i32);
 
