@@ -111,7 +111,19 @@ fn every_output_is_checked_before_any_work() {
     assert_eq!(std::fs::read(d.path().join("s.obj")).unwrap(), shelf, "input untouched");
     // Two outputs on one file: one would silently replace the other, so even --force refuses.
     refused(
-        &["retarget", "s.obj", "-o", "c.obj", "--steps", "1", "--preview", "p.png", "--json", "./p.png", "--force"],
+        &[
+            "retarget",
+            "s.obj",
+            "-o",
+            "c.obj",
+            "--steps",
+            "1",
+            "--preview",
+            "p.png",
+            "--json",
+            "./p.png",
+            "--force",
+        ],
         "names a model or picture format",
     );
     refused(
@@ -163,11 +175,8 @@ fn eval_warns_when_scores_mean_less_than_they_seem() {
     assert!(stderr(&o).is_empty(), "--quiet hides warnings: {}", stderr(&o));
 }
 
-#[test]
-fn zero_normals_are_ignored_with_a_warning() {
-    // A unit sphere of 2000 points whose normals are all zero (a scanner's "unknown").
-    let d = tmp();
-    let n = 2000;
+/// An ASCII PLY of a unit sphere of `n` points (Fibonacci spiral) with the normals `normal(i, p)`.
+fn sphere_ply(n: usize, normal: impl Fn(usize, [f64; 3]) -> [f64; 3]) -> String {
     let mut ply = format!(
         "ply\nformat ascii 1.0\nelement vertex {n}\nproperty double x\nproperty double y\nproperty double z\n\
          property float nx\nproperty float ny\nproperty float nz\nend_header\n"
@@ -176,9 +185,19 @@ fn zero_normals_are_ignored_with_a_warning() {
         let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
         let r = (1.0 - z * z).sqrt();
         let phi = i as f64 * 2.399_963_229_728_653;
-        ply.push_str(&format!("{} {} {z} 0 0 0\n", r * phi.cos(), r * phi.sin()));
+        let p = [r * phi.cos(), r * phi.sin(), z];
+        let m = normal(i, p);
+        ply.push_str(&format!("{} {} {} {} {} {}\n", p[0], p[1], p[2], m[0], m[1], m[2]));
     }
-    std::fs::write(d.path().join("sphere.ply"), ply).unwrap();
+    ply
+}
+
+#[test]
+fn zero_normals_are_ignored_with_a_warning() {
+    // A unit sphere of 2000 points whose normals are all zero (a scanner's "unknown").
+    let d = tmp();
+    let n = 2000;
+    std::fs::write(d.path().join("sphere.ply"), sphere_ply(n, |_, _| [0.0; 3])).unwrap();
     let o = motif(&["curvature", "sphere.ply", "k.ply", "--json"], d.path());
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("2000 of 2000 normals are zero"), "{}", stderr(&o));
@@ -188,19 +207,8 @@ fn zero_normals_are_ignored_with_a_warning() {
 
     // The same sphere with its inward normals (as the file gives them) and every twentieth zero:
     // only those are estimated, oriented like the file's around them, so the curvature is -1.
-    let mut ply = format!(
-        "ply\nformat ascii 1.0\nelement vertex {n}\nproperty double x\nproperty double y\nproperty double z\n\
-         property float nx\nproperty float ny\nproperty float nz\nend_header\n"
-    );
-    for i in 0..n {
-        let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-        let r = (1.0 - z * z).sqrt();
-        let phi = i as f64 * 2.399_963_229_728_653;
-        let (x, y) = (r * phi.cos(), r * phi.sin());
-        let normal = if i % 20 == 0 { [0.0; 3] } else { [-x, -y, -z] };
-        ply.push_str(&format!("{x} {y} {z} {} {} {}\n", normal[0], normal[1], normal[2]));
-    }
-    std::fs::write(d.path().join("inward.ply"), ply).unwrap();
+    let inward = sphere_ply(n, |i, p| if i % 20 == 0 { [0.0; 3] } else { p.map(|c| -c) });
+    std::fs::write(d.path().join("inward.ply"), inward).unwrap();
     let o = motif(&["curvature", "inward.ply", "k2.ply", "--json"], d.path());
     assert!(o.status.success(), "{}", stderr(&o));
     let e = stderr(&o);
