@@ -43,8 +43,8 @@
 //! Grown by +2 along its first offset, one opening of 753 vertices runs over four planes and
 //! around a voxel corner; split over its planes, caps close it too. Two kinds of opening were
 //! still left open until 2026-11-28 (over all six orders of the offsets of the cheese, as it is
-//! and turned by 47°, times five step vectors, 8 of 60 outputs kept 820–1,075 open edges, and the
-//! turned cheese +1,+1,+1 with its offsets by axis 672): an opening that wraps round a voxel,
+//! and turned by 47°, times five step vectors, 12 of 60 outputs kept 672–1,075 open edges,
+//! `the_cheese_grown_with_its_offsets_in_every_order_stitches_closed`): an opening that wraps round a voxel,
 //! whose planes' lines enclose a face, so that the chords are not unique plane by plane, and two
 //! copies' sections touching along a voxel edge, whose chords run twice along it. Chords chosen
 //! over all planes at once ([`joint_chords`]), each segment crossed up to twice, close all 60
