@@ -226,7 +226,7 @@ pub enum StlEncodingArg {
     Ascii,
 }
 
-#[derive(Debug, Args)]
+#[derive(Debug, Args, Default)]
 pub struct EncodingArgs {
     /// PLY encoding of the output [default: binary-le]
     #[arg(long, value_enum)]

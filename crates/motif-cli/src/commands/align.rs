@@ -109,13 +109,7 @@ pub fn run(a: AlignArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 *v = motif_core::geometry::transform_vector(&r.transform, *v);
             }
         }
-        super::write_model(
-            out,
-            &moved,
-            &[&a.source, &a.target],
-            g,
-            &super::write_options(&a.encoding, out, g),
-        )?;
+        super::write_model(out, &moved, &[&a.source, &a.target], g, &a.encoding)?;
     }
     let report = AlignReport {
         source: a.source.display().to_string(),

@@ -22,13 +22,7 @@ pub fn run(a: ConvertArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     crate::output::check_output_formats(&[(Some(a.output()), crate::output::OutputKind::Model)])?;
     let t = Instant::now();
     let model = super::read_model(&a.input)?;
-    super::write_model(
-        a.output(),
-        &model,
-        &[&a.input],
-        g,
-        &super::write_options(&a.encoding, a.output(), g),
-    )?;
+    super::write_model(a.output(), &model, &[&a.input], g, &a.encoding)?;
     let r = ConvertReport {
         input: a.input.display().to_string(),
         output: a.output().display().to_string(),

@@ -102,13 +102,7 @@ pub fn run(a: CurvatureArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         if v.normals.is_none() {
             v.normals = Some(pc.iter().map(|c| c.normal).collect());
         }
-        super::write_model(
-            a.output(),
-            &model,
-            &[&a.input],
-            g,
-            &super::write_options(&a.encoding, a.output(), g),
-        )?;
+        super::write_model(a.output(), &model, &[&a.input], g, &a.encoding)?;
     }
     let fitted = pc.iter().filter(|c| c.status == CurvatureStatus::Fitted).count();
     let r = CurvatureReport {

@@ -45,7 +45,7 @@ pub fn run(a: ExampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     crate::output::check_output_formats(&[(Some(&output), crate::output::OutputKind::Model)])?;
     let ex = procedural::generate(&name, g.seed)?;
     let model = Model::from_mesh(&ex.mesh);
-    super::write_model(&output, &model, &[], g, &super::write_options(&a.encoding, &output, g))?;
+    super::write_model(&output, &model, &[], g, &a.encoding)?;
     if let Some(s) = &a.structure {
         write_json(s, &ex.structure)?;
     }
@@ -134,7 +134,7 @@ fn run_scene(kind: SceneKind, output: &Path, a: &ExampleArgs, g: &GlobalArgs) ->
     let (n, classes, instances) =
         (scene.cloud.len(), scene.ground_truth.classes.len(), scene.ground_truth.instance_count());
     let model = Model::from_point_cloud(scene.cloud);
-    super::write_model(output, &model, &parts, g, &super::write_options(&a.encoding, output, g))?;
+    super::write_model(output, &model, &parts, g, &a.encoding)?;
     if let Some(gt) = &a.gt {
         write_json(gt, &scene.ground_truth)?;
     }

@@ -105,7 +105,7 @@ pub fn read_model_for_geometry(path: &Path, g: &crate::cli::GlobalArgs) -> anyho
 
 /// The write options the user chose for `output`, with a warning when one of them does not apply
 /// to its format (`--stl-encoding ascii` for a PLY output used to be ignored without a word).
-pub fn write_options(e: &EncodingArgs, output: &Path, g: &crate::cli::GlobalArgs) -> WriteOptions {
+fn write_options(e: &EncodingArgs, output: &Path, g: &crate::cli::GlobalArgs) -> WriteOptions {
     let format = motif_core::io::Format::from_path(output).ok();
     let (ply, stl) = (e.ply_encoding.is_some(), e.stl_encoding.is_some());
     for (given, flag, applies, kind) in [
@@ -132,16 +132,18 @@ pub fn write_options(e: &EncodingArgs, output: &Path, g: &crate::cli::GlobalArgs
     }
 }
 
-/// Writes a model atomically after checking it does not overwrite an input.
+/// Writes a model atomically, in the encodings the user chose, after checking it does not
+/// overwrite an input.
 pub fn write_model(
     path: &Path,
     model: &Model,
     inputs: &[&Path],
     g: &crate::cli::GlobalArgs,
-    options: &WriteOptions,
+    encoding: &EncodingArgs,
 ) -> anyhow::Result<()> {
     crate::output::check_outputs(&[Some(path)], inputs, g.force)?;
-    io::write(path, model, options).with_context(|| format!("writing {}", path.display()))?;
+    let options = write_options(encoding, path, g);
+    io::write(path, model, &options).with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }
 

@@ -71,13 +71,7 @@ pub fn run(a: NormalsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     };
     model.vertices.normals = Some(normals);
     let ms = ms_since(t);
-    super::write_model(
-        a.output(),
-        &model,
-        &[&a.input],
-        g,
-        &super::write_options(&a.encoding, a.output(), g),
-    )?;
+    super::write_model(a.output(), &model, &[&a.input], g, &a.encoding)?;
     let r = NormalsReport {
         input: a.input.display().to_string(),
         output: a.output().display().to_string(),

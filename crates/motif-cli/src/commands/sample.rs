@@ -81,13 +81,7 @@ pub fn run(a: SampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     })})?;
     let ms = ms_since(t);
     let samples = cloud.len();
-    super::write_model(
-        a.output(),
-        &Model::from_point_cloud(cloud),
-        &[&a.input],
-        g,
-        &super::write_options(&a.encoding, a.output(), g),
-    )?;
+    super::write_model(a.output(), &Model::from_point_cloud(cloud), &[&a.input], g, &a.encoding)?;
     let r = SampleReport {
         input: a.input.display().to_string(),
         output: a.output().display().to_string(),
