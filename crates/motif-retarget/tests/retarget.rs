@@ -1077,9 +1077,9 @@ fn turned_real_models_stitch_into_consistent_closed_surfaces() {
 /// twice along a voxel edge (2026-11-28), 12 of these kept 672–1,075 open edges (openings wrapping
 /// round a voxel, or two copies' sections touching along a voxel edge; with the first change
 /// alone, 8 kept 820–1,075); alpha-expansion stops at a different labelling in each order, so the
-/// orders reach different seams. Where two sections
-/// touch along a voxel edge, the output has edges of four triangles, two each way (as a Boolean
-/// union of solids touching along an edge has): at most 3 per output.
+/// orders reach different seams. Where two sections touch along a voxel edge, the output has
+/// edges of four triangles, two each way (as a Boolean union of solids touching along an edge
+/// has): at most 3 per output.
 #[test]
 fn the_cheese_grown_with_its_offsets_in_every_order_stitches_closed() {
     let Some(dir) = motif_core::data::shared_data_dir(std::path::Path::new(env!("CARGO_MANIFEST_DIR")))
