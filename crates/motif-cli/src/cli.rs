@@ -161,6 +161,16 @@ pub fn json_path(value: &str) -> Result<PathBuf, String> {
     }
 }
 
+/// Value parser for one file of a comma-separated list: an empty name (a stray comma, as in
+/// `--parts a.obj,`) is named as such, where clap's own parser would say that no value was given.
+pub fn listed_path(value: &str) -> Result<PathBuf, String> {
+    if value.is_empty() {
+        Err("empty file name in the comma-separated list (a stray comma?)".to_string())
+    } else {
+        Ok(PathBuf::from(value))
+    }
+}
+
 #[derive(Debug, Args)]
 pub struct InfoArgs {
     /// Input mesh or point cloud.
@@ -453,7 +463,7 @@ pub struct ExampleArgs {
     #[arg(long)]
     pub points: Option<usize>,
     /// Benchmark scenes: meshes used as extra building blocks, comma-separated.
-    #[arg(long, value_delimiter = ',', value_name = "FILES")]
+    #[arg(long, value_delimiter = ',', value_name = "FILES", value_parser = listed_path)]
     pub parts: Vec<PathBuf>,
     #[command(flatten)]
     pub encoding: EncodingArgs,

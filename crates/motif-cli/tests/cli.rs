@@ -48,6 +48,11 @@ fn usage_errors_exit_2_and_help_exits_0() {
     assert_eq!(o.status.code(), Some(2));
     let o = motif(&["sample", "a.obj", "b.ply"], d.path());
     assert_eq!(o.status.code(), Some(2), "sample needs --radius or --count: {}", stderr(&o));
+    // A stray comma in a list of files is named as such, not as a missing value.
+    let o = motif(&["example", "scene-parts", "p.ply", "--parts", "s.obj,"], d.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("empty file name"), "{}", stderr(&o));
+    assert!(files_in(d.path()).is_empty());
 }
 
 #[test]

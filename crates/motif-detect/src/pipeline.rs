@@ -463,6 +463,12 @@ pub fn detect(
         samples: None,
     };
     if pre.features.len() < o.min_features.max(8) {
+        if pre.points.is_empty() && !pre.warnings.is_empty() {
+            // Preprocessing already said why there is nothing to detect (too few points, or no
+            // extent); advice about ε or κ would mislead.
+            report.seconds.total = t0.elapsed().as_secs_f64();
+            return Ok(empty(report, pre.features));
+        }
         // A smaller ε helps only while resampling drops points; at the data's own spacing it
         // cannot add any.
         let at_data_resolution = pre.points.len() as f64 >= 0.9 * cloud.len() as f64;

@@ -274,8 +274,16 @@ pub fn preprocess(cloud: &PointCloud, o: &PreprocessOptions, force: bool) -> Res
     let mut warnings = Vec::new();
     let diagonal = principal_diagonal(&cloud.positions);
     if cloud.len() < 10 || diagonal.is_nan() || diagonal <= 0.0 {
+        // The ε the run would have used, so the report says what was asked for; a relative ε of
+        // a shape with no extent is 0.
+        let epsilon = match o.epsilon {
+            Epsilon::Absolute(e) => e,
+            Epsilon::Relative(r) if diagonal > 0.0 => r * diagonal,
+            Epsilon::Auto if diagonal > 0.0 => THESIS_EPSILON_SHAPES * diagonal,
+            _ => 0.0,
+        };
         return Ok(Preprocessed {
-            epsilon: 0.0,
+            epsilon,
             diagonal,
             points: Vec::new(),
             normals: Vec::new(),

@@ -189,6 +189,21 @@ fn a_plane_has_too_few_features_and_gives_an_empty_result() {
 }
 
 #[test]
+fn five_points_give_an_empty_result_with_one_reason_and_the_epsilon_asked_for() {
+    let pts = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 1.0, 1.0]];
+    let cloud = PointCloud::from_positions(pts);
+    let mut o = options();
+    o.preprocess.epsilon = Epsilon::Relative(0.01);
+    let d = detect(&cloud, "five", &o, &NoProgress, false).expect("no error");
+    assert!(d.result.classes.is_empty());
+    assert!(d.report.diagonal > 0.0);
+    assert!((d.report.epsilon - 0.01 * d.report.diagonal).abs() < 1e-12, "ε {}", d.report.epsilon);
+    let reasons: Vec<_> = d.report.warnings.iter().filter(|w| w.contains("nothing")).collect();
+    assert_eq!(reasons.len(), 1, "{:?}", d.report.warnings);
+    assert!(reasons[0].contains("only 5 points"), "{:?}", d.report.warnings);
+}
+
+#[test]
 fn absurd_epsilon_is_refused_unless_forced() {
     let (cloud, _) = facade(2_000);
     let mut o = options();
