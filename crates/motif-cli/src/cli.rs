@@ -19,7 +19,7 @@ pub struct Cli {
 /// Options every subcommand accepts.
 #[derive(Debug, Args)]
 pub struct GlobalArgs {
-    /// Hide progress bars and informational messages (results and errors still print).
+    /// Hide progress bars and informational messages (results, warnings and errors still print).
     #[arg(long, short, global = true)]
     pub quiet: bool,
     /// Seed for every random choice, so results reproduce exactly.

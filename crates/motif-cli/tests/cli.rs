@@ -1450,6 +1450,21 @@ fn results_print_under_quiet_and_a_failing_stdout_is_an_error_not_a_panic() {
     assert!(motif(&["example", "shelf", "s.obj"], d.path()).status.success());
     let o = motif(&["-q", "offsets", "s.obj"], d.path());
     assert!(o.status.success() && stdout(&o).contains("2 principal offsets"), "{}", stdout(&o));
+    // Every command's result line, under -q; only the "wrote" notes go.
+    let o = motif(&["-q", "retarget", "s.obj", "--steps", "1,0,0", "-o", "r.obj"], d.path());
+    assert!(o.status.success() && stdout(&o).contains("nodes"), "{}{}", stdout(&o), stderr(&o));
+    assert!(!stderr(&o).contains("wrote"), "{}", stderr(&o));
+    assert!(motif(&["example", "gear", "g.obj"], d.path()).status.success());
+    let o = motif(&["-q", "symmetry", "detect", "g.obj", "-o", "g.sym.json"], d.path());
+    assert!(o.status.success() && stdout(&o).contains("global"), "{}{}", stdout(&o), stderr(&o));
+    // A JSON report written to a file leaves the text results on stdout.
+    for args in [
+        &["info", "s.obj", "--json", "i.json"][..],
+        &["symmetry", "check", "g.obj", "g.sym.json", "--json", "c.json"][..],
+    ] {
+        let o = motif(args, d.path());
+        assert!(o.status.success() && !stdout(&o).is_empty(), "{args:?}: {}", stderr(&o));
+    }
     if Path::new("/dev/full").exists() {
         let full = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
         let o = Command::new(env!("CARGO_BIN_EXE_motif"))
@@ -1487,9 +1502,15 @@ fn option_errors_speak_in_the_users_terms() {
     assert!(motif(&["example", "shelf", "s.obj"], d.path()).status.success());
     let o = motif(&["example", "nope", "x.obj"], d.path());
     assert!(stderr(&o).contains("scene-facade") && stderr(&o).contains("shelf"), "{}", stderr(&o));
-    let o = motif(&["retarget", "s.obj", "-o", "r.obj", "--target-size", "0.1,0.1,0.1"], d.path());
+    let o = motif(&["retarget", "s.obj", "-o", "r.obj", "--target-size", "0.1,0.1,0.3"], d.path());
     assert_eq!(o.status.code(), Some(2));
-    assert!(stderr(&o).contains("--target-size 0.1,0.1,0.1 means --steps"), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--target-size 0.1,0.1,0.3 means --steps"), "{}", stderr(&o));
+    // The shelf (0.3 deep) repeats along x and y only: a depth of 5 cannot be reached, and is
+    // refused rather than ignored.
+    let o = motif(&["retarget", "s.obj", "-o", "r.obj", "--target-size", "1.7,1.13,5"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("z = 5 (it would be 0.3"), "{}", stderr(&o));
+    assert!(!d.path().join("r.obj").exists());
     let o = motif(&["--force", "retarget", "s.obj", "-o", "r.obj", "--steps", "10000,0"], d.path());
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("--force does not lift"), "{}", stderr(&o));

@@ -38,8 +38,8 @@ pub fn run(a: AlignArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     if a.iterations == 0 || a.iterations > 10_000 {
         return Err(bad_input(format!("--iterations {}: use 1 to 10000", a.iterations)));
     }
-    let source = super::read_model_for_geometry(&a.source, g)?;
-    let target = super::read_model_for_geometry(&a.target, g)?;
+    let source = super::read_model_for_geometry(&a.source)?;
+    let target = super::read_model_for_geometry(&a.target)?;
     let options = IcpOptions {
         metric: match a.metric {
             IcpMetricArg::PointToPoint => IcpMetric::PointToPoint,
@@ -122,8 +122,10 @@ pub fn run(a: AlignArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         converged: r.converged,
         ms,
     };
-    if a.json.json.is_some() {
-        return maybe_json(&a.json.json, &report);
+    // A report written to a file leaves the text on stdout; one on stdout replaces it.
+    maybe_json(&a.json.json, &report)?;
+    if crate::output::json_on_stdout(&a.json.json) {
+        return Ok(());
     }
     println!(
         "rmse {:.6e} over {:.1}% inliers, {} iterations{}",

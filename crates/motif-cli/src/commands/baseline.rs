@@ -24,7 +24,7 @@ struct Report {
 pub fn rigid_icp(a: RigidIcpArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let inputs = [a.scene.as_path(), a.gt.as_path()];
     check_outputs(&[Some(&a.output), a.json.json.as_deref()], &inputs, g.force)?;
-    let cloud = super::read_model_for_geometry(&a.scene, g)?.vertices;
+    let cloud = super::read_model_for_geometry(&a.scene)?.vertices;
     if cloud.is_empty() {
         return Err(bad_input(format!("{}: no points", a.scene.display())));
     }
@@ -52,7 +52,8 @@ pub fn rigid_icp(a: RigidIcpArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         .unwrap_or_else(|| detection.scene.clone());
     write_json(&a.output, &detection)?;
     let eval = evaluate(&detection, &ground_truth, &EvalOptions::default())?;
-    if !json_on_stdout(&a.json.json) && !g.quiet {
+    // Results print under --quiet too.
+    if !json_on_stdout(&a.json.json) {
         for c in &report.classes {
             match &c.skipped {
                 Some(why) => println!("{}: skipped: {why}", c.name),

@@ -53,7 +53,7 @@ pub fn run(a: CurvatureArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             a.output().display()
         )));
     }
-    let mut model = super::read_model_for_geometry(&a.input, g)?;
+    let mut model = super::read_model_for_geometry(&a.input)?;
     let neighbourhood = match (a.k, a.radius) {
         (_, Some(r)) if !(r > 0.0 && r.is_finite()) => {
             return Err(bad_input(format!("--radius {r}: must be a positive number")));

@@ -170,7 +170,8 @@ pub fn run(a: DeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         stats,
         total_ms: ms_since(t0),
     };
-    if !crate::output::json_on_stdout(&a.json.json) && !g.quiet {
+    // Results print under --quiet too; warnings always; only the "wrote" note is quiet.
+    if !crate::output::json_on_stdout(&a.json.json) {
         println!(
             "{} vertices, {} symmetries, {} samples, {} DoF{}",
             report.vertices,
@@ -192,11 +193,11 @@ pub fn run(a: DeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         }
         let worst = report.handle_fit.iter().map(|f| f.max_error).fold(0.0, f64::max);
         println!("handle fit: largest sample error {:.2e} of the diagonal", worst);
-        for w in &report.warnings {
-            super::note(g, format!("warning: {w}"));
-        }
-        super::note(g, format!("wrote {}", report.output));
     }
+    for w in &report.warnings {
+        super::warn(w);
+    }
+    super::note(g, format!("wrote {}", report.output));
     maybe_json(&a.json.json, &report)
 }
 

@@ -123,7 +123,7 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         )));
     }
     let bar = Bar::new(g.quiet);
-    let model = bar.spin("reading", || super::read_model_for_geometry(&a.input, g))?;
+    let model = bar.spin("reading", || super::read_model_for_geometry(&a.input))?;
     let scene = a.input.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let t = std::time::Instant::now();
     let detection = if model.is_mesh() {
@@ -134,7 +134,7 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     .map_err(|e| anyhow::Error::new(e).context(format!("detecting in {}", a.input.display())))?;
     let seconds = t.elapsed().as_secs_f64();
     for w in &detection.report.warnings {
-        super::note(g, format!("warning: {w}"));
+        super::warn(w);
     }
     write_json(&a.output, &detection.result)?;
     if let Some(p) = &a.labels {
@@ -147,7 +147,7 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             let (annotation, mut notes) = detection.as_symmetry_on_mesh(&model.vertices.positions);
             let annotation = keep_exact_copies(&model.mesh(), annotation, &mut notes);
             for n in notes {
-                super::note(g, format!("warning: {n}"));
+                super::warn(n);
             }
             annotation
         } else {
@@ -155,7 +155,8 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         };
         write_json(p, &annotation)?;
     }
-    if !crate::output::json_on_stdout(&a.json.json) && !g.quiet {
+    // Results print under --quiet too; only the "wrote" note is quiet.
+    if !crate::output::json_on_stdout(&a.json.json) {
         let r = &detection.report;
         let per: Vec<String> = r.instances_per_class.iter().map(|n| n.to_string()).collect();
         println!(
@@ -178,8 +179,8 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             r.seconds.instances,
             r.seconds.output
         );
-        eprintln!("wrote {}", a.output.display());
     }
+    super::note(g, format!("wrote {}", a.output.display()));
     maybe_json(
         &a.json.json,
         &serde_json::json!({

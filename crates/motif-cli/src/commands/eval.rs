@@ -22,7 +22,7 @@ pub fn run(a: EvalArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     for pair in a.files.chunks(2) {
         let (d, gt) = (DetectionResult::read(&pair[0])?, DetectionResult::read(&pair[1])?);
         for w in pair_warnings(&d, &gt, &pair[0], &pair[1]) {
-            super::note(g, format!("warning: {w}"));
+            super::warn(w);
         }
         loaded.push((d, gt));
     }

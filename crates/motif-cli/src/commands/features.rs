@@ -31,7 +31,7 @@ pub fn run_shot(a: ShotArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     if let Some(0) = a.every {
         return Err(bad_input("--every 0: use a positive step"));
     }
-    let model = super::read_model_for_geometry(&a.input, g)?;
+    let model = super::read_model_for_geometry(&a.input)?;
     let n = model.vertices.len();
     let (normals, source) = match (&model.vertices.normals, model.is_mesh()) {
         (Some(nr), _) => (nr.clone(), "from the input"),

@@ -68,8 +68,10 @@ pub fn run(a: InfoArgs, _g: &GlobalArgs) -> anyhow::Result<()> {
         warnings: model.warnings.clone(),
         load_ms,
     };
-    if a.json.json.is_some() {
-        return maybe_json(&a.json.json, &r);
+    // A report written to a file leaves the text on stdout; one on stdout replaces it.
+    maybe_json(&a.json.json, &r)?;
+    if crate::output::json_on_stdout(&a.json.json) {
+        return Ok(());
     }
     println!("{}", r.file);
     println!("  format       {} ({})", r.format, r.kind);

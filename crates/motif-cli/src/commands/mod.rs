@@ -69,43 +69,36 @@ pub fn read_model(path: &Path) -> anyhow::Result<Model> {
     Ok(io::read(path)?)
 }
 
-/// Reads a model for a command that computes with it: the reader's warnings are shown (unless
-/// quiet), and zero normals are estimated from the points around them, or, when more than half
+/// Reads a model for a command that computes with it: the reader's warnings are shown, and zero normals are estimated from the points around them, or, when more than half
 /// are zero, all of them as for a file without normals
 /// ([`motif_core::PointCloud::repair_degenerate_normals`]), with a warning.
-pub fn read_model_for_geometry(path: &Path, g: &crate::cli::GlobalArgs) -> anyhow::Result<Model> {
+pub fn read_model_for_geometry(path: &Path) -> anyhow::Result<Model> {
     let mut model = io::read(path)?;
     for w in &model.warnings {
-        note(g, format!("warning: {}: {w}", path.display()));
+        warn(format!("{}: {w}", path.display()));
     }
     let count = model.vertices.len();
     let repair = model.vertices.repair_degenerate_normals();
     let zero = repair.degenerate;
     if repair.dropped {
-        note(
-            g,
-            format!(
-                "warning: {}: {zero} of {count} normals are zero (or were not finite); the file's normals are ignored",
-                path.display()
-            ),
-        );
+        warn(format!(
+            "{}: {zero} of {count} normals are zero (or were not finite); the file's normals are ignored",
+            path.display()
+        ));
     } else if repair.estimated > 0 {
-        note(
-            g,
-            format!(
-                "warning: {}: {zero} of {count} normals are zero (or were not finite); those were estimated \
+        warn(format!(
+            "{}: {zero} of {count} normals are zero (or were not finite); those were estimated \
                  from their {} nearest points and oriented like the file's normals around them",
-                path.display(),
-                motif_core::point_cloud::REPAIR_NEIGHBOURS
-            ),
-        );
+            path.display(),
+            motif_core::point_cloud::REPAIR_NEIGHBOURS
+        ));
     }
     Ok(model)
 }
 
 /// The write options the user chose for `output`, with a warning when one of them does not apply
 /// to its format (`--stl-encoding ascii` for a PLY output used to be ignored without a word).
-fn write_options(e: &EncodingArgs, output: &Path, g: &crate::cli::GlobalArgs) -> WriteOptions {
+fn write_options(e: &EncodingArgs, output: &Path) -> WriteOptions {
     let format = motif_core::io::Format::from_path(output).ok();
     let (ply, stl) = (e.ply_encoding.is_some(), e.stl_encoding.is_some());
     for (given, flag, applies, kind) in [
@@ -113,10 +106,7 @@ fn write_options(e: &EncodingArgs, output: &Path, g: &crate::cli::GlobalArgs) ->
         (stl, "--stl-encoding", format == Some(motif_core::io::Format::Stl), "STL"),
     ] {
         if given && !applies {
-            note(
-                g,
-                format!("warning: {flag} applies to {kind} outputs only; {} is not one", output.display()),
-            );
+            warn(format!("{flag} applies to {kind} outputs only; {} is not one", output.display()));
         }
     }
     WriteOptions {
@@ -142,9 +132,15 @@ pub fn write_model(
     encoding: &EncodingArgs,
 ) -> anyhow::Result<()> {
     crate::output::check_outputs(&[Some(path)], inputs, g.force)?;
-    let options = write_options(encoding, path, g);
+    let options = write_options(encoding, path);
     io::write(path, model, &options).with_context(|| format!("writing {}", path.display()))?;
     Ok(())
+}
+
+/// Prints a warning on stderr, under --quiet too: a warning says something about the result
+/// (an estimated normal, an open seam) that a quiet script should still see.
+pub fn warn(msg: impl AsRef<str>) {
+    eprintln!("warning: {}", msg.as_ref());
 }
 
 /// Prints an informational line on stderr unless quiet (stdout is kept for results).

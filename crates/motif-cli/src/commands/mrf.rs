@@ -39,8 +39,10 @@ pub fn solve(a: MrfSolveArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             return Err(if named { e } else { e.context(name) });
         }
     };
-    if a.json.json.is_some() {
-        return maybe_json(&a.json.json, &sol);
+    // A report written to a file leaves the text on stdout; one on stdout replaces it.
+    maybe_json(&a.json.json, &sol)?;
+    if crate::output::json_on_stdout(&a.json.json) {
+        return Ok(());
     }
     println!("{}", a.problem.display());
     println!(

@@ -245,16 +245,16 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             .filter(|&k| e[k] <= 0.0)
             .map(|k| format!("{} (asked {})", ["x", "y", "z"][k], size[k]))
             .collect();
+        // The scale factors are the result (printed under --quiet too); "wrote" is a note.
+        let factor = |f: f64| if (1e-3..1e4).contains(&f) { format!("{f:.4}") } else { format!("{f:.4e}") };
+        eprintln!(
+            "{evidence}; scaled by {} x {} x {} (--plain-resize){}",
+            factor(s[0]),
+            factor(s[1]),
+            factor(s[2]),
+            if flat.is_empty() { " as asked".to_string() } else { String::new() }
+        );
         if !g.quiet {
-            let factor =
-                |f: f64| if (1e-3..1e4).contains(&f) { format!("{f:.4}") } else { format!("{f:.4e}") };
-            eprintln!(
-                "{evidence}; scaled by {} x {} x {} (--plain-resize){}",
-                factor(s[0]),
-                factor(s[1]),
-                factor(s[2]),
-                if flat.is_empty() { " as asked".to_string() } else { String::new() }
-            );
             eprintln!("wrote {}", a.output.display());
             if let Some(p) = &a.preview {
                 eprintln!("wrote {}", p.display());
@@ -304,6 +304,37 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 let d = normalize(*o).unwrap_or([1.0, 0.0, 0.0]);
                 let want: f64 = (0..3).map(|i| d[i].abs() * size[i]).sum();
                 s[k] = ((want - extent_along(&mesh, d)) / len).round() as i32;
+            }
+            // The size each axis will get: an axis no offset reaches cannot change, and one that
+            // an offset reaches comes within half a step of the size asked. Anything further off
+            // is refused, as --steps along a direction without an offset is.
+            let bbox = mesh
+                .surface_aabb()
+                .or_else(|| mesh.aabb())
+                .unwrap_or(motif_core::Aabb { min: [0.0; 3], max: [0.0; 3] });
+            let unreachable: Vec<String> = (0..3)
+                .filter_map(|i| {
+                    let extent = bbox.max[i] - bbox.min[i];
+                    let grown: f64 = (0..principal.len()).map(|k| s[k] as f64 * principal[k][i].abs()).sum();
+                    let got = extent + grown;
+                    let half_step = 0.5 * principal.iter().map(|o| o[i].abs()).fold(0.0, f64::max);
+                    let slack = half_step + 1e-3 * extent;
+                    ((got - size[i]).abs() > slack).then(|| {
+                        let len = |x: f64| motif_core::geometry::format_length(x, extent, 4);
+                        format!("{} = {} (it would be {})", ["x", "y", "z"][i], size[i], len(got))
+                    })
+                })
+                .collect();
+            if !unreachable.is_empty() {
+                return Err(bad_input(format!(
+                    "--target-size: {} repeats along {} principal offset(s) only (`motif offsets {}` lists \
+                     them), and no whole number of them gives {}: ask for the size the model has along an \
+                     axis no offset reaches",
+                    a.mesh.display(),
+                    principal.len(),
+                    a.mesh.display(),
+                    unreachable.join(", ")
+                )));
             }
             s
         }
@@ -357,8 +388,10 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         motif_retarget::plot::plot_retarget_preview(&mesh, &res.mesh, view, up, &title, p)?;
     }
     let r = &res.report;
-    if !crate::output::json_on_stdout(&a.json.json) && !g.quiet {
-        let input_boundary = mesh.edge_stats().boundary;
+    // Results print under --quiet too (only the "wrote" notes are quiet), and the warning
+    // always does; a JSON report on stdout replaces the text.
+    let input_boundary = mesh.edge_stats().boundary;
+    if !crate::output::json_on_stdout(&a.json.json) {
         for (k, o) in principal.iter().enumerate() {
             let len = |x: f64| motif_core::geometry::format_length(x, motif_core::geometry::norm(*o), 6);
             println!("offset {k}: [{}, {}, {}]  steps {:+}", len(o[0]), len(o[1]), len(o[2]), steps[k]);
@@ -393,35 +426,35 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 r.reoriented_triangles
             );
         }
-        if r.infinite_seams > 0 {
-            let dims = principal.len().clamp(1, 3);
-            let others = match alternatives.as_deref() {
-                Some([]) | None => {
-                    "Steps along one offset near these do not stitch cleanly either".to_string()
-                }
-                Some(list) => {
-                    let names: Vec<String> = list
-                        .iter()
-                        .map(|s| {
-                            format!(
-                                "--steps {}",
-                                s[..dims].iter().map(i32::to_string).collect::<Vec<_>>().join(",")
-                            )
-                        })
-                        .collect();
-                    let verb = if names.len() == 1 { "stitches" } else { "stitch" };
-                    format!("{} {verb} cleanly", names.join(" and "))
-                }
-            };
-            eprintln!(
-                "warning: no seam-consistent stitching was found for these steps (energy +inf): at {} of \
+    }
+    if r.infinite_seams > 0 {
+        let dims = principal.len().clamp(1, 3);
+        let others = match alternatives.as_deref() {
+            Some([]) | None => "Steps along one offset near these do not stitch cleanly either".to_string(),
+            Some(list) => {
+                let names: Vec<String> = list
+                    .iter()
+                    .map(|s| {
+                        format!(
+                            "--steps {}",
+                            s[..dims].iter().map(i32::to_string).collect::<Vec<_>>().join(",")
+                        )
+                    })
+                    .collect();
+                let verb = if names.len() == 1 { "stitches" } else { "stitch" };
+                format!("{} {verb} cleanly", names.join(" and "))
+            }
+        };
+        eprintln!(
+            "warning: no seam-consistent stitching was found for these steps (energy +inf): at {} of \
                  {} seams one copy's geometry meets empty space in another copy (an empty voxel of the \
                  input, or beyond its end when the input is only a few cells long along a grown \
                  direction); the output has {} open boundary edges (the input has {}). {others}; \
                  --preview PNG shows the result",
-                r.infinite_seams, r.seams, r.output_boundary_edges, input_boundary
-            );
-        }
+            r.infinite_seams, r.seams, r.output_boundary_edges, input_boundary
+        );
+    }
+    if !g.quiet {
         eprintln!("wrote {}", a.output.display());
         if let Some(p) = &a.preview {
             eprintln!("wrote {}", p.display());

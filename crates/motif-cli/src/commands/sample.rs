@@ -46,7 +46,7 @@ pub fn run(a: SampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
              many anyway)"
         )));
     }
-    let model = super::read_model_for_geometry(&a.input, g)?;
+    let model = super::read_model_for_geometry(&a.input)?;
     let poisson = a.poisson || a.radius.is_some();
     let in_input = || format!("sampling {}", a.input.display());
     let t = Instant::now();

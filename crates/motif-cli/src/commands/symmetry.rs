@@ -53,7 +53,8 @@ pub fn detect(a: SymmetryDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let ms = ms_since(t);
     write_json(&a.output, &det.annotation)?;
     let stdout_json = crate::output::json_on_stdout(&a.json.json);
-    if !stdout_json && !g.quiet {
+    // Results print under --quiet too; only the "wrote" note is quiet.
+    if !stdout_json {
         let global = det.report.groups.iter().filter(|gr| gr.scope == Scope::Global).count();
         if global == 0 {
             println!("no global symmetry within {:.0e} of the diagonal", a.tolerance);
@@ -78,6 +79,8 @@ pub fn detect(a: SymmetryDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 if a.approximate { "" } else { "; --approximate adds them" }
             );
         }
+    }
+    if !g.quiet {
         eprintln!("wrote {} ({:.0} ms)", a.output.display(), ms);
     }
     let report = DetectReport {
@@ -96,9 +99,8 @@ pub fn check(a: SymmetryCheckArgs, _g: &GlobalArgs) -> anyhow::Result<()> {
     let annotation = motif_deform::annotation::read_annotation(&a.annotation)?;
     let report = motif_deform::residual::check_annotation(&mesh, &annotation)
         .with_context(|| format!("{} with {}", a.mesh.display(), a.annotation.display()))?;
-    if a.json.json.is_some() {
-        maybe_json(&a.json.json, &report)?;
-    } else {
+    maybe_json(&a.json.json, &report)?;
+    if !crate::output::json_on_stdout(&a.json.json) {
         println!(
             "{} against {} (tolerance {:.0e} of the diagonal)",
             a.annotation.display(),
