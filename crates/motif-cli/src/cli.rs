@@ -382,7 +382,8 @@ pub struct ShotArgs {
     /// Reference frame.
     #[arg(long, value_enum, default_value_t)]
     pub frame: FrameArg,
-    /// Output: `.csv` (index, frame, descriptor) or anything else for the binary PEERSHOT layout.
+    /// Output: `.csv` (index, frame axes xx..zz, descriptor f0..f351) or anything else for the
+    /// binary PEERSHOT layout.
     #[arg(short, long)]
     pub output: PathBuf,
     #[command(flatten)]

@@ -267,11 +267,13 @@ fn peershot_round_trips() {
     let csv = String::from_utf8(csv).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
     assert_eq!(lines.len(), 4);
-    assert!(lines[0].starts_with("index,f0,f1,") && lines[0].ends_with(",f351"));
-    assert_eq!(lines[1].split(',').count(), 1 + SHOT_LEN);
+    assert!(lines[0].starts_with("index,xx,xy,xz,yx,yy,yz,zx,zy,zz,f0,f1,") && lines[0].ends_with(",f351"));
+    assert_eq!(lines[1].split(',').count(), 1 + 9 + SHOT_LEN);
     assert!(lines[2].starts_with("2000,NaN,"));
     let back: Vec<f32> = lines[1].split(',').skip(1).map(|v| v.parse().unwrap()).collect();
-    assert_eq!(back, d.descriptor(0).unwrap());
+    let frame: Vec<f32> = d.frames[0].iter().flatten().copied().collect();
+    assert_eq!(back[..9], frame[..]);
+    assert_eq!(back[9..], d.descriptor(0).unwrap()[..]);
 }
 
 #[test]

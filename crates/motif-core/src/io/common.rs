@@ -164,9 +164,17 @@ pub(crate) fn unit_to_u8(v: f64) -> u8 {
     (v.clamp(0.0, 1.0) * 255.0).round() as u8
 }
 
-/// Collects faces as stored in a file, fan-triangulates polygons and drops degenerate ones.
+/// Collects faces as stored in a file, triangulates polygons and drops degenerate ones.
 ///
-/// A face is degenerate when its fan yields no triangle with three distinct vertices (for a
+/// A convex polygon (every corner turning the same way about its Newell normal) is split as a
+/// fan from its first corner, which is what every reader and writer of these formats does. A
+/// concave one is ear-clipped (earcut) in the plane across its Newell normal's largest axis, so
+/// that its triangles cover it without folding over one another whichever corner the file lists
+/// first; when ear clipping fails (a self-intersecting or repeated-corner polygon), the fan is
+/// kept. Triangles keep the polygon's winding. Polygons are triangulated in
+/// [`FaceSink::finish`], once every position is known (PLY may list faces first).
+///
+/// A face is degenerate when it yields no triangle with three distinct vertices (for a
 /// triangle: fewer than 3 distinct indices). Degenerate faces are dropped and reported as a
 /// warning; a file whose faces are all degenerate is an error (see [`FaceSink::finish`]).
 #[derive(Debug, Default)]
@@ -178,6 +186,10 @@ pub(crate) struct FaceSink {
     first_degenerate: Option<Position>,
     /// Triangles dropped from polygons that still gave at least one good triangle.
     degenerate_fan_triangles: usize,
+    /// Polygons of more than three corners, triangulated in `finish`: where their triangles go
+    /// in `triangles`, their corners' range in `polygon_corners`, and where the face was read.
+    polygons: Vec<(usize, std::ops::Range<usize>, Position)>,
+    polygon_corners: Vec<u32>,
 }
 
 impl FaceSink {
@@ -197,25 +209,81 @@ impl FaceSink {
             }
             return;
         }
-        let mut good = 0;
-        let mut bad = 0;
-        if polygon.len() >= 3 {
-            let a = polygon[0];
-            for w in polygon[1..].windows(2) {
-                let (b, c) = (w[0], w[1]);
-                if a != b && b != c && a != c {
-                    self.triangles.push([a, b, c]);
-                    good += 1;
-                } else {
-                    bad += 1;
+        if polygon.len() < 3 {
+            self.degenerate(pos);
+            return;
+        }
+        let start = self.polygon_corners.len();
+        self.polygon_corners.extend_from_slice(polygon);
+        self.polygons.push((self.triangles.len(), start..self.polygon_corners.len(), pos()));
+    }
+
+    /// Triangulates one polygon of more than three corners into `out`; returns the number of
+    /// fan triangles dropped for a repeated corner, or `None` when none is left.
+    fn triangulate(
+        polygon: &[u32],
+        positions: &[[f64; 3]],
+        earcut: &mut earcut::Earcut<f64>,
+        flat: &mut Vec<[f64; 2]>,
+        ears: &mut Vec<u32>,
+        out: &mut Vec<[u32; 3]>,
+    ) -> Option<usize> {
+        let before = out.len();
+        let at = |v: u32| positions.get(v as usize).copied().unwrap_or([0.0; 3]);
+        let n = polygon.len();
+        let distinct = {
+            let mut c = polygon.to_vec();
+            c.sort_unstable();
+            c.dedup();
+            c.len() == n
+        };
+        if distinct {
+            // Newell's normal, then the turn at each corner about it.
+            let mut normal = [0.0; 3];
+            for i in 0..n {
+                let (p, q) = (at(polygon[i]), at(polygon[(i + 1) % n]));
+                normal[0] += (p[1] - q[1]) * (p[2] + q[2]);
+                normal[1] += (p[2] - q[2]) * (p[0] + q[0]);
+                normal[2] += (p[0] - q[0]) * (p[1] + q[1]);
+            }
+            let concave = (0..n).any(|i| {
+                let (u, v, w) = (at(polygon[(i + n - 1) % n]), at(polygon[i]), at(polygon[(i + 1) % n]));
+                let (a, b) = (crate::geometry::sub(v, u), crate::geometry::sub(w, v));
+                crate::geometry::dot(crate::geometry::cross(a, b), normal) < 0.0
+            });
+            if concave {
+                let axis = (0..3).max_by(|&a, &b| normal[a].abs().total_cmp(&normal[b].abs())).unwrap_or(2);
+                let (d1, d2) = ((axis + 1) % 3, (axis + 2) % 3);
+                flat.clear();
+                flat.extend(polygon.iter().map(|&v| [at(v)[d1], at(v)[d2]]));
+                earcut.earcut_slice(flat, &[], ears);
+                if ears.len() == 3 * (n - 2) && earcut::deviation(flat.iter().copied(), &[], ears) < 1e-9 {
+                    let up = normal[axis].signum();
+                    for t in ears.chunks_exact(3) {
+                        let (a, b, c) = (t[0] as usize, t[1] as usize, t[2] as usize);
+                        let area = (flat[b][0] - flat[a][0]) * (flat[c][1] - flat[a][1])
+                            - (flat[c][0] - flat[a][0]) * (flat[b][1] - flat[a][1]);
+                        out.push(if area * up >= 0.0 {
+                            [polygon[a], polygon[b], polygon[c]]
+                        } else {
+                            [polygon[a], polygon[c], polygon[b]]
+                        });
+                    }
+                    return Some(0);
                 }
             }
         }
-        if good == 0 {
-            self.degenerate(pos);
-        } else {
-            self.degenerate_fan_triangles += bad;
+        let a = polygon[0];
+        let mut bad = 0;
+        for w in polygon[1..].windows(2) {
+            let (b, c) = (w[0], w[1]);
+            if a != b && b != c && a != c {
+                out.push([a, b, c]);
+            } else {
+                bad += 1;
+            }
         }
+        (out.len() > before).then_some(bad)
     }
 
     /// Adds one triangle strip (indices already validated): triangle `i` is `s[i], s[i+1],
@@ -245,8 +313,34 @@ impl FaceSink {
         }
     }
 
-    /// Reports dropped faces as warnings; errors when there were faces but none survived.
-    pub(crate) fn finish(self, path: &Path, warnings: &mut Vec<String>) -> Result<(Vec<[u32; 3]>, usize)> {
+    /// Triangulates the polygons (see the type's documentation), reports dropped faces as
+    /// warnings; errors when there were faces but none survived.
+    pub(crate) fn finish(
+        mut self,
+        path: &Path,
+        positions: &[[f64; 3]],
+        warnings: &mut Vec<String>,
+    ) -> Result<(Vec<[u32; 3]>, usize)> {
+        if !self.polygons.is_empty() {
+            let mut merged = Vec::with_capacity(self.triangles.len() + self.polygon_corners.len());
+            let (mut earcut, mut flat, mut ears) = (earcut::Earcut::new(), Vec::new(), Vec::new());
+            let mut next = 0;
+            let polygons = std::mem::take(&mut self.polygons);
+            for (at, corners, pos) in polygons {
+                merged.extend_from_slice(&self.triangles[next..at]);
+                next = at;
+                let polygon = &self.polygon_corners[corners];
+                match Self::triangulate(polygon, positions, &mut earcut, &mut flat, &mut ears, &mut merged) {
+                    Some(bad) => self.degenerate_fan_triangles += bad,
+                    None => {
+                        self.degenerate_faces += 1;
+                        self.first_degenerate.get_or_insert(pos);
+                    }
+                }
+            }
+            merged.extend_from_slice(&self.triangles[next..]);
+            self.triangles = merged;
+        }
         if self.source_faces > 0 && self.triangles.is_empty() {
             return Err(perr(
                 path,
@@ -306,18 +400,49 @@ mod tests {
         s.add(&[0, 0, 1], || Position::Line(2));
         s.add(&[4, 5, 4, 6], || Position::Line(3));
         let mut w = Vec::new();
-        let (t, n) = s.finish(Path::new("x"), &mut w).unwrap();
+        let square = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]];
+        let (t, n) = s.finish(Path::new("x"), &square, &mut w).unwrap();
         assert_eq!(n, 3);
         assert_eq!(t, vec![[0, 1, 2], [0, 2, 3]]);
         assert_eq!(w.len(), 1, "{w:?}");
         assert!(w[0].contains("dropped 2 degenerate faces") && w[0].contains("line 2"), "{w:?}");
     }
 
+    /// A concave quad (a dart) covers its own area, facing the polygon's way, whichever corner
+    /// is listed first; a fan from the reflex corner's neighbour used to fold over itself.
+    #[test]
+    fn concave_polygons_are_ear_clipped_from_any_first_corner() {
+        let dart = [[0.0, 0.0, 0.0], [2.0, 1.0, 0.0], [0.0, 2.0, 0.0], [1.0, 1.0, 0.0]];
+        for first in 0..4u32 {
+            for reversed in [false, true] {
+                let mut polygon: Vec<u32> = (0..4).map(|i| (first + i) % 4).collect();
+                if reversed {
+                    polygon.reverse();
+                }
+                let mut s = FaceSink::default();
+                s.add(&polygon, || Position::Line(1));
+                let (t, _) = s.finish(Path::new("x"), &dart, &mut Vec::new()).unwrap();
+                assert_eq!(t.len(), 2, "{polygon:?}");
+                let mut area = 0.0;
+                for tri in &t {
+                    let [a, b, c] = tri.map(|v| dart[v as usize]);
+                    let z = crate::geometry::cross(crate::geometry::sub(b, a), crate::geometry::sub(c, a))[2];
+                    assert!(
+                        z * if reversed { -1.0 } else { 1.0 } > 0.0,
+                        "{polygon:?} → {t:?} folds or flips"
+                    );
+                    area += 0.5 * z.abs();
+                }
+                assert!((area - 1.0).abs() < 1e-12, "{polygon:?}: area {area}");
+            }
+        }
+    }
+
     #[test]
     fn all_degenerate_is_an_error() {
         let mut s = FaceSink::default();
         s.add(&[1, 1, 2], || Position::Line(7));
-        let e = s.finish(Path::new("x.obj"), &mut Vec::new()).unwrap_err();
+        let e = s.finish(Path::new("x.obj"), &[[0.0; 3]; 3], &mut Vec::new()).unwrap_err();
         assert!(e.to_string().contains("line 7"), "{e}");
     }
 }

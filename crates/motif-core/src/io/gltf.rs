@@ -433,7 +433,7 @@ struct Assembly {
 
 impl Assembly {
     fn finish(self, path: &Path, format: Format, mut warnings: Vec<String>) -> Result<Model> {
-        let (triangles, source_faces) = self.faces.finish(path, &mut warnings)?;
+        let (triangles, source_faces) = self.faces.finish(path, &self.positions, &mut warnings)?;
         if self.skipped_lines > 0 {
             warnings.push(format!("skipped {} line primitives", self.skipped_lines));
         }

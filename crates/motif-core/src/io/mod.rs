@@ -140,7 +140,7 @@ impl std::fmt::Display for Format {
 pub struct Model {
     /// Positions, plus normals, colours and named scalar attributes when the file has them.
     pub vertices: PointCloud,
-    /// Triangles (polygons fan-triangulated, degenerate faces dropped); empty for point clouds.
+    /// Triangles (polygons triangulated: convex ones as a fan, concave ones by ear clipping; degenerate faces dropped); empty for point clouds.
     pub triangles: Vec<[u32; 3]>,
     /// Faces as stored in the file, before triangulation and before dropping degenerate faces
     /// (an OBJ quad counts 1; an STL facet counts 1).

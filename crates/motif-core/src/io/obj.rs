@@ -1,5 +1,6 @@
 //! Wavefront OBJ: `v x y z [w | r g b]`, `vn`, `f` with `i`, `i/t`, `i//n`, `i/t/n` and negative
-//! (relative) indices; polygons are fan-triangulated. `vt`, `usemtl`, `mtllib`, `o`, `g`, `s`,
+//! (relative) indices and `\` line continuations; polygons are triangulated (convex ones as a
+//! fan, concave ones by ear clipping: `FaceSink` in `common.rs`). `vt`, `usemtl`, `mtllib`, `o`, `g`, `s`,
 //! `l`, `p` and comments are read past. A file without `f` records is a point cloud.
 //!
 //! The vertex count is the number of `v` records: vertices are never split by texture or normal
@@ -52,8 +53,28 @@ pub(super) fn read(bytes: &[u8], path: &Path) -> Result<Model> {
     let mut forward_n: Option<(u32, usize)> = None;
     let mut ignored: Vec<(String, usize)> = Vec::new();
     let lines = Lines::new(bytes);
+    // A line ending in a backslash continues on the next (the OBJ specification's line
+    // continuation): the pieces are joined with a space and read as one statement, reported at
+    // its first line.
+    let (mut carry, mut carry_line, mut joined) = (Vec::new(), 0, Vec::new());
 
     for (ln, raw) in lines {
+        if let Some(head) = raw.trim_ascii_end().strip_suffix(b"\\") {
+            if carry.is_empty() {
+                carry_line = ln;
+            }
+            carry.extend_from_slice(head);
+            carry.push(b' ');
+            continue;
+        }
+        let (ln, raw) = if carry.is_empty() {
+            (ln, raw)
+        } else {
+            joined.clear();
+            joined.append(&mut carry);
+            joined.extend_from_slice(raw);
+            (carry_line, &joined[..])
+        };
         let line = raw.trim_ascii_start();
         if line.is_empty() || line[0] == b'#' {
             continue;
@@ -154,6 +175,13 @@ pub(super) fn read(bytes: &[u8], path: &Path) -> Result<Model> {
             }
         }
     }
+    if !carry.is_empty() {
+        return Err(perr(
+            path,
+            Position::Line(carry_line),
+            "the file ends inside a statement continued with a backslash (\\)",
+        ));
+    }
 
     let nv = positions.len();
     if let Some((i, ln)) = forward_v.filter(|&(i, _)| i as usize >= nv) {
@@ -173,7 +201,7 @@ pub(super) fn read(bytes: &[u8], path: &Path) -> Result<Model> {
     super::common::check_vertex_count(path, Position::Whole, nv as u64)?;
 
     let mut warnings = Vec::new();
-    let (triangles, source_faces) = faces.finish(path, &mut warnings)?;
+    let (triangles, source_faces) = faces.finish(path, &positions, &mut warnings)?;
 
     let colors = if colors.is_empty() {
         None
@@ -345,6 +373,16 @@ mod tests {
         assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3], [0, 1, 2], [0, 2, 3]]);
         assert_eq!(m.vertices.normals.as_ref().unwrap()[1], [0.0, 0.0, 1.0]);
         assert!(m.warnings.is_empty(), "{:?}", m.warnings);
+    }
+
+    #[test]
+    fn a_backslash_continues_a_statement_on_the_next_line() {
+        let m = parse("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 \\\n 3\nv \\\r\n 1 1 0\nf 2 4 3\n").unwrap();
+        assert_eq!(m.triangles, vec![[0, 1, 2], [1, 3, 2]]);
+        assert_eq!(m.vertices.positions[3], [1.0, 1.0, 0.0]);
+        // An error in a continued statement is reported at its first line.
+        assert_eq!(line_of(parse("v 0 0 0\nv 1 \\\n x 0\n").unwrap_err()), 2);
+        assert_eq!(line_of(parse("v 0 0 0\nf 1 \\\n").unwrap_err()), 2);
     }
 
     #[test]

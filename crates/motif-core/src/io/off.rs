@@ -89,6 +89,7 @@ pub(super) fn read(bytes: &[u8], path: &Path) -> Result<Model> {
     let mut positions = Vec::with_capacity(nv);
     let mut normals = header.normal.then(|| Vec::with_capacity(nv));
     let mut colors = header.color.then(|| Vec::with_capacity(nv));
+    let mut any_real = false;
     let eof = |what: String, lines: &Lines<'_>| {
         perr(
             path,
@@ -115,13 +116,31 @@ pub(super) fn read(bytes: &[u8], path: &Path) -> Result<Model> {
             k = 6;
         }
         if let Some(c) = &mut colors {
-            c.push([
-                color(path, pos, toks[k])?,
-                color(path, pos, toks[k + 1])?,
-                color(path, pos, toks[k + 2])?,
-            ]);
+            let mut rgb = [0.0; 3];
+            for (j, v) in rgb.iter_mut().enumerate() {
+                let (value, real) = color(path, pos, toks[k + j])?;
+                *v = value;
+                any_real |= real;
+            }
+            c.push(rgb);
         }
     }
+    // Colours are 0..1 reals or 0..255 integers for the whole file: one component written as a
+    // real (`0.5`, `1.0`) makes a `1` elsewhere mean full intensity, not 1/255 (`%g` writes 1.0
+    // as `1`). A component above 1 can only be on the 0..255 scale.
+    let colors = colors.map(|c| {
+        c.into_iter()
+            .map(|rgb| {
+                rgb.map(|v| {
+                    if any_real && v <= 1.0 {
+                        super::common::unit_to_u8(v)
+                    } else {
+                        v.clamp(0.0, 255.0).round() as u8
+                    }
+                })
+            })
+            .collect::<Vec<[u8; 3]>>()
+    });
 
     let mut faces = FaceSink::with_capacity(nf.min(lines.remaining() as u64 / 2) as usize);
     let mut polygon = Vec::with_capacity(8);
@@ -160,7 +179,7 @@ pub(super) fn read(bytes: &[u8], path: &Path) -> Result<Model> {
     }
 
     let mut warnings = Vec::new();
-    let (triangles, source_faces) = faces.finish(path, &mut warnings)?;
+    let (triangles, source_faces) = faces.finish(path, &positions, &mut warnings)?;
     Ok(Model {
         vertices: PointCloud { positions, normals, colors, attributes: Vec::new() },
         triangles,
@@ -224,13 +243,14 @@ fn parse_header(path: &Path, ln: usize, tok: &[u8]) -> Result<Header> {
     }
 }
 
-/// A colour component: an integer 0..255, or a real number 0..1 (written with a point or exponent).
-fn color(path: &Path, pos: Position, t: &[u8]) -> Result<u8> {
+/// A colour component and whether it was written as a real (0..1) rather than an integer
+/// (0..255); which scale applies is decided for the whole file.
+fn color(path: &Path, pos: Position, t: &[u8]) -> Result<(f64, bool)> {
     if let Some(i) = parse_i64(t) {
-        return Ok(i.clamp(0, 255) as u8);
+        return Ok((i.clamp(0, 255) as f64, false));
     }
     match parse_f64(t) {
-        Some(v) if v.is_finite() => Ok(super::common::unit_to_u8(v)),
+        Some(v) if v.is_finite() => Ok((v, true)),
         _ => Err(perr(path, pos, bad_number(t, "a colour component"))),
     }
 }
@@ -285,6 +305,13 @@ mod tests {
                 .unwrap();
         assert_eq!(m.vertices.colors.unwrap(), vec![[255, 0, 0], [0, 255, 0], [0, 0, 255]]);
         assert_eq!(m.vertices.normals.unwrap()[2], [0.0, 0.0, 1.0]);
+        // 0..1 colours written with %g: a `1` is full intensity once any component is a real.
+        let m =
+            parse("COFF\n3 1 0\n0 0 0 1 1 1 1\n1 0 0 0.5 0.5 0.5 1\n0 1 0 1.0 0 1 1.0\n3 0 1 2\n").unwrap();
+        assert_eq!(m.vertices.colors.unwrap(), vec![[255, 255, 255], [128, 128, 128], [255, 0, 255]]);
+        // All integers: the 0..255 scale.
+        let m = parse("COFF\n3 1 0\n0 0 0 1 1 1\n1 0 0 128 0 0\n0 1 0 0 0 255\n3 0 1 2\n").unwrap();
+        assert_eq!(m.vertices.colors.unwrap(), vec![[1, 1, 1], [128, 0, 0], [0, 0, 255]]);
     }
 
     #[test]

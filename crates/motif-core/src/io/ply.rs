@@ -481,7 +481,7 @@ fn read_body(header: &Header, body: &mut dyn Body, body_len: usize, path: &Path)
             }
         }
     }
-    let (triangles, source_faces) = faces.finish(path, &mut warnings)?;
+    let (triangles, source_faces) = faces.finish(path, &cloud.positions, &mut warnings)?;
     Ok(Model { vertices: cloud, triangles, source_faces, format: Format::Ply, warnings })
 }
 

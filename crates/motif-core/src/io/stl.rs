@@ -196,7 +196,7 @@ fn weld(
         polygon.extend(remap[range].iter().copied());
         faces.add(&polygon, || pos);
     }
-    let (triangles, source_faces) = faces.finish(path, &mut warnings)?;
+    let (triangles, source_faces) = faces.finish(path, &positions, &mut warnings)?;
     Ok(Model {
         vertices: PointCloud::from_positions(positions),
         triangles,

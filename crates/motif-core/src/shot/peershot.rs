@@ -59,12 +59,19 @@ pub fn read_peershot_file(path: impl AsRef<Path>) -> Result<ShotDescriptors> {
     parse(&bytes, path)
 }
 
-/// Writes `shots` as CSV: a header `index,f0,...,f351`, then one row per keypoint with its point
-/// index and descriptor (shortest round-trip decimal form; `NaN` for invalid keypoints).
+/// Writes `shots` as CSV: a header `index,xx,xy,xz,yx,yy,yz,zx,zy,zz,f0,...,f351`, then one row
+/// per keypoint with its point index, its frame's `x`, `y` and `z` axes (world components, as in
+/// the PEERSHOT layout) and its descriptor (shortest round-trip decimal form; `NaN` for the frame
+/// and descriptor of an invalid keypoint).
 pub fn write_shot_csv(w: &mut impl Write, shots: &ShotDescriptors) -> std::io::Result<()> {
     check_lengths(shots)?;
-    let mut line = String::with_capacity(16 * SHOT_LEN);
+    let mut line = String::with_capacity(16 * (SHOT_LEN + 10));
     line.push_str("index");
+    for axis in ["x", "y", "z"] {
+        for c in ["x", "y", "z"] {
+            line.push_str(&format!(",{axis}{c}"));
+        }
+    }
     for k in 0..SHOT_LEN {
         line.push_str(&format!(",f{k}"));
     }
@@ -73,7 +80,8 @@ pub fn write_shot_csv(w: &mut impl Write, shots: &ShotDescriptors) -> std::io::R
     for i in 0..shots.len() {
         line.clear();
         line.push_str(&shots.keypoints[i].to_string());
-        for &v in &shots.descriptors[i * SHOT_LEN..(i + 1) * SHOT_LEN] {
+        let frame = shots.frames[i].iter().flatten();
+        for &v in frame.chain(&shots.descriptors[i * SHOT_LEN..(i + 1) * SHOT_LEN]) {
             let v = if shots.valid[i] { v } else { f32::NAN };
             line.push(',');
             line.push_str(&v.to_string());
