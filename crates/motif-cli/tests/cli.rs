@@ -607,6 +607,22 @@ fn symmetry_detect_writes_an_annotation_and_mrf_solve_reports_energy() {
 }
 
 #[test]
+fn the_examples_own_drag_deforms_with_default_settings() {
+    // The gear's handle spheres (5% of its diagonal) were narrower than the default samples'
+    // spacing, and deform refused them.
+    let d = tmp();
+    for ex in ["gear", "fan"] {
+        let args = ["example", ex, "e.obj", "--annotation", "e.sym.json", "--handles", "e.h.json"];
+        assert!(motif(&args, d.path()).status.success());
+        let o = motif(
+            &["deform", "e.obj", "--symmetry", "e.sym.json", "--handles", "e.h.json", "-o", "out.obj"],
+            d.path(),
+        );
+        assert!(o.status.success(), "{ex}: {}", stderr(&o));
+    }
+}
+
+#[test]
 fn deform_keeps_symmetry_exact_and_no_symmetry_does_not() {
     let d = tmp();
     assert!(motif(&["example", "fan", "fan.obj", "--structure", "fan.json"], d.path()).status.success());

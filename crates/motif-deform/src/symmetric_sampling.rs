@@ -48,6 +48,13 @@ const MAX_CANDIDATES: usize = 4_000_000;
 /// guess the radius of a target count (hexagonal packing gives 0.87; random maximal sets ~0.7).
 const AREA_PER_SAMPLE: f64 = 0.7;
 
+/// The Poisson-disc radius that `count` samples on a surface of area `area` come out at, about
+/// (the spacing [`SampleSpacing::Count`] starts its search from). Handle regions narrower than
+/// this may hold no sample.
+pub fn radius_for_count(area: f64, count: usize) -> f64 {
+    (area / (AREA_PER_SAMPLE * count.max(1) as f64)).sqrt()
+}
+
 /// How dense the sampling is.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -484,7 +491,7 @@ pub fn symmetric_sampling(
                     message: format!("the sample count must lie in 1..=1000000, got {n}"),
                 });
             }
-            (n as f64, (area / (AREA_PER_SAMPLE * n as f64)).sqrt())
+            (n as f64, radius_for_count(area, n))
         }
     };
     let wanted = (o.oversampling * expected).ceil().max(64.0);

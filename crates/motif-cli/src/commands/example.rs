@@ -71,7 +71,9 @@ pub fn run(a: ExampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
 }
 
 /// One end of the longest bounding-box axis fixed, the other end lifted along the shortest axis by
-/// up to 15% of the diagonal over 30 frames (spheres of 5% of the diagonal).
+/// up to 15% of the diagonal over 30 frames (spheres of 5% of the diagonal, or twice the spacing
+/// of `motif deform`'s default samples when that is wider, so that each holds samples: on the
+/// gear 5% was narrower than the spacing and deform refused the handles).
 fn sample_drag(mesh: &motif_core::TriMesh) -> motif_deform::HandlesFile {
     use motif_core::procedural::{Region, translation};
     use motif_deform::{Handle, HandlesFile};
@@ -86,7 +88,12 @@ fn sample_drag(mesh: &motif_core::TriMesh) -> motif_deform::HandlesFile {
             .max_by(|p, q| (sign * p[long]).total_cmp(&(sign * q[long])))
             .unwrap_or(bb.center())
     };
-    let r = 0.05 * bb.diagonal();
+    let count = match motif_deform::symmetric_sampling::SymmetricSamplingOptions::default().spacing {
+        motif_deform::symmetric_sampling::SampleSpacing::Count(n) => n,
+        motif_deform::symmetric_sampling::SampleSpacing::Radius(_) => 400,
+    };
+    let spacing = motif_deform::symmetric_sampling::radius_for_count(mesh.area(), count);
+    let r = (0.05 * bb.diagonal()).max(2.0 * spacing);
     let handles = vec![
         Handle::fixed(Region::Sphere { center: end(-1.0), radius: r }),
         Handle::fixed(Region::Sphere { center: end(1.0), radius: r }),
