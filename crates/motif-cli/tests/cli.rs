@@ -1527,7 +1527,7 @@ fn option_errors_speak_in_the_users_terms() {
     // refused rather than ignored.
     let o = motif(&["retarget", "s.obj", "-o", "r.obj", "--target-size", "1.7,1.13,5"], d.path());
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    assert!(stderr(&o).contains("z = 5 (it would be 0.3"), "{}", stderr(&o));
+    assert!(stderr(&o).contains("z = 5 (it stays 0.3"), "{}", stderr(&o));
     assert!(!d.path().join("r.obj").exists());
     let o = motif(&["--force", "retarget", "s.obj", "-o", "r.obj", "--steps", "10000,0"], d.path());
     assert_eq!(o.status.code(), Some(2));

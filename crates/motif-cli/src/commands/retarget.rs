@@ -305,31 +305,31 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 let want: f64 = (0..3).map(|i| d[i].abs() * size[i]).sum();
                 s[k] = ((want - extent_along(&mesh, d)) / len).round() as i32;
             }
-            // The size each axis will get: an axis no offset reaches cannot change, and one that
-            // an offset reaches comes within half a step of the size asked. Anything further off
-            // is refused, as --steps along a direction without an offset is.
+            // An axis that no offset reaches (no offset has 5% of its length along it) keeps
+            // its size: asking for another one there is refused, as --steps along a direction
+            // without an offset is, instead of being ignored. Axes an offset reaches come as
+            // close as whole steps allow (on a sheared grid, growth along one offset also moves
+            // another axis a little, so no tolerance is checked there).
             let bbox = mesh
                 .surface_aabb()
                 .or_else(|| mesh.aabb())
                 .unwrap_or(motif_core::Aabb { min: [0.0; 3], max: [0.0; 3] });
+            let diagonal = bbox.diagonal();
             let unreachable: Vec<String> = (0..3)
                 .filter_map(|i| {
+                    let reached = principal.iter().any(|o| o[i].abs() > 0.05 * motif_core::geometry::norm(*o));
                     let extent = bbox.max[i] - bbox.min[i];
-                    let grown: f64 = (0..principal.len()).map(|k| s[k] as f64 * principal[k][i].abs()).sum();
-                    let got = extent + grown;
-                    let half_step = 0.5 * principal.iter().map(|o| o[i].abs()).fold(0.0, f64::max);
-                    let slack = half_step + 1e-3 * extent;
-                    ((got - size[i]).abs() > slack).then(|| {
-                        let len = |x: f64| motif_core::geometry::format_length(x, extent, 4);
-                        format!("{} = {} (it would be {})", ["x", "y", "z"][i], size[i], len(got))
+                    let slack = 0.01 * extent + 1e-6 * diagonal;
+                    (!reached && (extent - size[i]).abs() > slack).then(|| {
+                        let len = |x: f64| motif_core::geometry::format_length(x, diagonal, 4);
+                        format!("{} = {} (it stays {})", ["x", "y", "z"][i], size[i], len(extent))
                     })
                 })
                 .collect();
             if !unreachable.is_empty() {
                 return Err(bad_input(format!(
                     "--target-size: {} repeats along {} principal offset(s) only (`motif offsets {}` lists \
-                     them), and no whole number of them gives {}: ask for the size the model has along an \
-                     axis no offset reaches",
+                     them), and none of them reaches {}: ask there for the size the model has",
                     a.mesh.display(),
                     principal.len(),
                     a.mesh.display(),
