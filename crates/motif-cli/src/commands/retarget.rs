@@ -317,7 +317,8 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             let diagonal = bbox.diagonal();
             let unreachable: Vec<String> = (0..3)
                 .filter_map(|i| {
-                    let reached = principal.iter().any(|o| o[i].abs() > 0.05 * motif_core::geometry::norm(*o));
+                    let reached =
+                        principal.iter().any(|o| o[i].abs() > 0.05 * motif_core::geometry::norm(*o));
                     let extent = bbox.max[i] - bbox.min[i];
                     let slack = 0.01 * extent + 1e-6 * diagonal;
                     (!reached && (extent - size[i]).abs() > slack).then(|| {
