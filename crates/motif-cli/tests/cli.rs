@@ -537,11 +537,12 @@ fn align_recovers_a_known_motion_and_demo_runs() {
     let r = json_of(&o);
     assert_eq!(r["options"]["metric"], "PointToPoint", "{r}");
     assert!(r["rmse"].as_f64().unwrap() > 0.01, "the chair does not lie on a line: {r}");
-    let o = motif(&["--quiet", "demo", "--out", "demo", "--json", "demo.json"], d.path());
+    // The report on stdout: stdout is JSON alone, and the walk-through goes to stderr.
+    let o = motif(&["demo", "--out", "demo", "--json"], d.path());
     assert!(o.status.success(), "{}", stderr(&o));
-    let rep: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(d.path().join("demo.json")).unwrap()).unwrap();
+    let rep = json_of(&o);
     assert_eq!(rep["steps"].as_array().unwrap().len(), 10);
+    assert!(stderr(&o).contains("[10/10]"), "{}", stderr(&o));
     assert!(d.path().join("demo/gear_curvature.ply").exists());
     assert!(d.path().join("demo/facade_scan.labels.ply").exists());
     assert!(d.path().join("demo/facade_scan.detection.json").exists());

@@ -126,6 +126,13 @@ impl Sandbox {
                 return Err(bad("is a symbolic link; the studio does not write through links"));
             }
             Ok(m) if m.is_dir() => return Err(bad("is a folder")),
+            // A FIFO, socket or device: writing through it would block or go elsewhere (an
+            // export onto a FIFO hung its session's thread for good).
+            Ok(m) if !m.is_file() => {
+                return Err(bad(
+                    "is not a regular file (a FIFO, socket or device); the studio writes only files",
+                ));
+            }
             Ok(_) => {
                 if inputs.contains(&target) {
                     return Err(bad("refusing to overwrite a file this session read; choose another name"));

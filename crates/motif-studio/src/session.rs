@@ -321,6 +321,16 @@ fn write_json_atomic(path: &std::path::Path, value: &impl serde::Serialize) -> R
     Ok(())
 }
 
+/// Held from the "already exists" check to the last file written by an export or a save, so
+/// that two sessions writing one new name cannot both be told "saved" (each session has a lock
+/// of its own; without this, eight sessions exporting `race.ply` at once got up to five "saved"
+/// replies, and a model beside another session's annotation).
+static WRITES: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn writes_lock() -> std::sync::MutexGuard<'static, ()> {
+    WRITES.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
 fn check_fresh(path: &std::path::Path, given: &str, overwrite: bool) -> Result<()> {
     if !overwrite && path.exists() {
         return Err(StudioError::BadPath {
@@ -338,6 +348,7 @@ pub fn save_annotation(shared: &Shared, path: &str, overwrite: bool) -> Result<V
         .annotation
         .as_ref()
         .ok_or_else(|| StudioError::NotReady("no annotation yet: detect or load one".to_string()))?;
+    let _writes = writes_lock();
     let file = s.sandbox.resolve_write(path, &s.inputs)?;
     check_fresh(&file, path, overwrite)?;
     write_json_atomic(&file, annotation)?;
@@ -591,6 +602,7 @@ pub fn export(
 ) -> Result<Vec<Out>> {
     let s = lock(shared);
     let loaded = s.loaded()?;
+    let writes = writes_lock();
     let file = s.sandbox.resolve_write(path, &s.inputs)?;
     check_fresh(&file, path, overwrite)?;
     Format::from_path(&file)?;
@@ -647,6 +659,7 @@ pub fn export(
             written.push(s.sandbox.display(&file));
         }
     }
+    drop(writes);
     let mut out = Vec::new();
     if download {
         // The bytes just written, read back through the sandbox, for the browser to save.

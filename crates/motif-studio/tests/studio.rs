@@ -573,6 +573,45 @@ async fn building_the_deformation_session_can_be_cancelled() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sessions_racing_to_one_new_name_get_one_saved_and_the_rest_already_exists() {
+    let s = start().await;
+    let mut sockets = Vec::new();
+    for _ in 0..8 {
+        let mut ws = connect(&s.url).await;
+        send(&mut ws, json!({"type": "open", "path": "fan.obj"})).await;
+        assert!(matches!(next_text(&mut ws).await, ServerMessage::Model { .. }));
+        sockets.push(ws);
+    }
+    for round in 0..4 {
+        let name = format!("race{round}.ply");
+        for ws in &mut sockets {
+            send(ws, json!({"type": "export", "path": name})).await;
+        }
+        let mut saved = 0;
+        for ws in &mut sockets {
+            match next_text(ws).await {
+                ServerMessage::Saved { .. } => saved += 1,
+                ServerMessage::Error { message, .. } => {
+                    assert!(message.contains("already exists"), "{message}")
+                }
+                other => panic!("expected saved or an error, got {other:?}"),
+            }
+        }
+        assert_eq!(saved, 1, "round {round}: {saved} sessions were told their {name} was saved");
+    }
+    // A FIFO under the root is not written through (that hung the session's thread).
+    if cfg!(unix)
+        && std::process::Command::new("mkfifo")
+            .arg(s.root.join("fifo.obj"))
+            .status()
+            .is_ok_and(|st| st.success())
+    {
+        send(&mut sockets[0], json!({"type": "export", "path": "fifo.obj", "overwrite": true})).await;
+        expect_error(next_text(&mut sockets[0]).await, "not a regular file");
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_export_whose_annotation_is_refused_writes_nothing() {
     let s = start().await;
     let ex = motif_core::procedural::generate("windmill", 1).unwrap();

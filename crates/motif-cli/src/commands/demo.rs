@@ -37,6 +37,8 @@ struct DemoReport {
 
 struct Demo<'a> {
     g: &'a GlobalArgs,
+    /// The walk-through goes to stderr when the JSON report takes stdout.
+    to_stderr: bool,
     out: &'a Path,
     steps: Vec<Step>,
     total: usize,
@@ -56,27 +58,44 @@ impl Demo<'_> {
         let (summary, outputs) = f(self).with_context(|| format!("demo step {name:?}"))?;
         let ms = ms_since(t);
         if !self.g.quiet {
-            println!("[{}/{}] {name} ({:.0} ms)", self.steps.len() + 1, self.total, ms);
+            let mut text = format!("[{}/{}] {name} ({:.0} ms)\n", self.steps.len() + 1, self.total, ms);
             for line in summary.lines() {
-                println!("      {line}");
+                text.push_str(&format!("      {line}\n"));
             }
             if !outputs.is_empty() {
-                println!("      -> {}", outputs.join(", "));
+                text.push_str(&format!("      -> {}\n", outputs.join(", ")));
             }
+            say(self.to_stderr, &text);
         }
         self.steps.push(Step { name, summary, outputs, ms });
         Ok(())
     }
 }
 
+/// Prints the demo's walk-through on stdout, or on stderr when stdout carries the JSON report.
+fn say(to_stderr: bool, text: &str) {
+    if to_stderr {
+        eprint!("{text}");
+    } else {
+        print!("{text}");
+    }
+}
+
 pub fn run(a: DemoArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     crate::output::check_outputs(&[a.json.json.as_deref()], &[], g.force)?;
+    let to_stderr = crate::output::json_on_stdout(&a.json.json);
     if !g.quiet {
-        println!("Motif demo: generated shapes with known structure, run through the geometry core.");
-        println!("Outputs go to {}/ (open the .obj/.ply files in any viewer).\n", a.out.display());
+        say(
+            to_stderr,
+            &format!(
+                "Motif demo: generated shapes with known structure, run through the geometry core.\n\
+                 Outputs go to {}/ (open the .obj/.ply files in any viewer).\n\n",
+                a.out.display()
+            ),
+        );
     }
-    let mut d = Demo { g, out: &a.out, steps: Vec::new(), total: 10 };
+    let mut d = Demo { g, to_stderr, out: &a.out, steps: Vec::new(), total: 10 };
     d.run("procedural examples with known structure", examples)?;
     d.run("IO round trip through every format", round_trip)?;
     d.run("Poisson-disc sampling of the windmill", sampling)?;
@@ -88,7 +107,10 @@ pub fn run(a: DemoArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     d.run("retargeting: the shelf made wider and taller along its own offsets", retargeting)?;
     d.run("building-block detection: windows found on a generated facade scan", detection)?;
     if !g.quiet {
-        println!("\nDone: {} steps; everything above is in {}/.", d.steps.len(), a.out.display());
+        say(
+            to_stderr,
+            &format!("\nDone: {} steps; everything above is in {}/.\n", d.steps.len(), a.out.display()),
+        );
     }
     let report = DemoReport { out: a.out.display().to_string(), seed: g.seed, steps: d.steps };
     maybe_json(&a.json.json, &report)
