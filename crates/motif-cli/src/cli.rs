@@ -87,7 +87,8 @@ pub enum Command {
 
 #[derive(Debug, Args)]
 pub struct StudioArgs {
-    /// A model (under --root) every new page opens first.
+    /// A model under --root that every new page opens first (a path from the current folder,
+    /// or from the root).
     pub model: Option<PathBuf>,
     /// TCP port (default: a free port chosen by the system).
     #[arg(long, default_value_t = 0)]

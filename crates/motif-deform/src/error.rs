@@ -99,12 +99,11 @@ pub enum DeformError {
         /// Number of vertices or faces of the mesh.
         count: usize,
     },
-    /// A symmetry transform does not map its region onto the shape within the tolerance.
+    /// A symmetry transform does not map its region onto the shape within the tolerance
+    /// (`AnnotationValidation::Force` deforms on the approximate symmetry instead).
     #[error(
         "symmetry {symmetry:?}: {transform} maps region vertices up to {residual:.3e} × the diagonal away \
-         from the shape (tolerance {tolerance:.1e}); fix the annotation, raise its tolerance, or force \
-         validation (`AnnotationValidation::Force`; `--force` in the CLI) to deform on the approximate \
-         symmetry"
+         from the shape (tolerance {tolerance:.1e}); fix the annotation, or raise its tolerance"
     )]
     SymmetryMismatch {
         /// The symmetry's name.

@@ -599,12 +599,16 @@ pub fn plot_retarget_preview(
                 .map_err(|e| plot_err(path, e))
         };
         text(title, 12, 8, 20)?;
-        for (k, (name, mesh, ext)) in [("input", input, ei), ("output", output, eo)].into_iter().enumerate() {
+        // The bounding box's sides, not the on-screen extents (the view is tilted, so those
+        // mixed the axes: the shelf's 1.7 × 1.13 read 1.704 × 1.317).
+        for (k, (name, mesh)) in [("input", input), ("output", output)].into_iter().enumerate() {
+            let e = mesh.aabb().map(|b| b.extent()).unwrap_or([0.0; 3]);
             text(
                 &format!(
-                    "{name}: {:.3} × {:.3} (model units), {} triangles",
-                    ext[1] - ext[0],
-                    ext[3] - ext[2],
+                    "{name}: {:.3} × {:.3} × {:.3} (bounding box, model units), {} triangles",
+                    e[0],
+                    e[1],
+                    e[2],
                     mesh.triangles.len()
                 ),
                 (k * panel_w) as i32 + 12,

@@ -94,7 +94,16 @@ pub fn inputs_from_manifest(manifest: &Path) -> Result<Vec<SparsityInput>> {
                 .get("path")
                 .and_then(|p| p.as_str())
                 .ok_or_else(|| input_err(format!("files[{i}] has no \"path\" string")))?;
-            let category = f.get("category").and_then(|c| c.as_str()).and_then(Category::parse);
+            // A category the study does not know is refused: counting it silently under its
+            // folder's category (or as unknown) would mix it into another average.
+            let category = match f.get("category") {
+                None | Some(serde_json::Value::Null) => None,
+                Some(c) => Some(c.as_str().and_then(Category::parse).ok_or_else(|| {
+                    input_err(format!(
+                        "files[{i}] ({path}) has category {c}: the study's categories are \"man-made\" and \"natural\" (or \"unknown\")"
+                    ))
+                })?),
+            };
             let path = base.join(path);
             let category = category.unwrap_or_else(|| category_from_path(&path));
             Ok(SparsityInput { path, category })
@@ -512,6 +521,22 @@ mod tests {
         assert_eq!(category_from_path(Path::new("/d/natural/x/b.off")), Category::Natural);
         assert_eq!(category_from_path(Path::new("/d/other/c.off")), Category::Unknown);
         assert_eq!(Category::parse("Man_Made"), Some(Category::ManMade));
+    }
+
+    #[test]
+    fn a_manifest_category_the_study_does_not_know_is_refused_by_entry() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let m = dir.path().join("MANIFEST.json");
+        let write = |cat: &str| {
+            std::fs::write(&m, format!(r#"{{"files": [{{"path": "man-made/a.off"{cat}}}]}}"#)).expect("write")
+        };
+        write(r#", "category": "furniture""#);
+        let e = inputs_from_manifest(&m).expect_err("furniture is no category of the study").to_string();
+        assert!(e.contains("files[0]") && e.contains("furniture"), "{e}");
+        write(r#", "category": "Natural""#);
+        assert_eq!(inputs_from_manifest(&m).expect("natural")[0].category, Category::Natural);
+        write("");
+        assert_eq!(inputs_from_manifest(&m).expect("from the folder")[0].category, Category::ManMade);
     }
 
     #[test]

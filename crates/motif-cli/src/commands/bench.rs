@@ -45,11 +45,30 @@ struct BenchReport {
     rows: Vec<Row>,
 }
 
-fn data_dir(a: &BenchDeformArgs) -> Option<PathBuf> {
-    if let Some(d) = &a.data {
-        return Some(d.clone());
+/// The shared data folder for the rows of real models: `--data DIR` (which must be a folder),
+/// else `$MOTIF_DATA` or `shared/data` above the current folder, else none.
+pub(crate) fn data_dir(given: &Option<PathBuf>) -> anyhow::Result<Option<PathBuf>> {
+    match given {
+        Some(d) if !d.is_dir() => Err(crate::output::bad_input(format!(
+            "--data {}: {}",
+            d.display(),
+            if d.exists() { "not a folder" } else { "no such folder" }
+        ))),
+        Some(d) => Ok(Some(d.clone())),
+        None => Ok(motif_core::data::shared_data_dir(Path::new("."))),
     }
-    motif_core::data::shared_data_dir(Path::new("."))
+}
+
+/// Reads one of the shared meshes; a file missing from `--data` is named as such.
+pub(crate) fn read_data_mesh(dir: &Path, rel: &str) -> anyhow::Result<TriMesh> {
+    let path = dir.join(rel);
+    if !path.exists() {
+        return Err(crate::output::bad_input(format!(
+            "{} has no {rel}: is it the shared data folder (its MANIFEST.json lists the models)?",
+            dir.display()
+        )));
+    }
+    Ok(motif_core::io::read_mesh(&path)?)
 }
 
 /// Four handles far apart (farthest-point picks among the vertices, starting at the extreme of the
@@ -170,7 +189,7 @@ pub fn deform(a: BenchDeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         cases.push((name.to_string(), "known", ex.mesh, ex.structure.symmetry));
     }
     if !a.generated_only {
-        match data_dir(&a) {
+        match data_dir(&a.data)? {
             Some(dir) => {
                 for rel in [
                     "man-made/cgal_turbine.off",
@@ -178,8 +197,7 @@ pub fn deform(a: BenchDeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                     "natural/cgal_armadillo.off",
                     "natural/cgal_armadillo_subdiv.ply",
                 ] {
-                    let path: &Path = &dir.join(rel);
-                    let mesh = motif_core::io::read_mesh(path)?;
+                    let mesh = read_data_mesh(&dir, rel)?;
                     let det = detect_symmetries(
                         &mesh,
                         &SymmetryDetectOptions { seed: g.seed, ..Default::default() },
@@ -257,6 +275,14 @@ pub fn deform(a: BenchDeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
 /// script lives in the source tree: this benchmark is for developers, like `cargo bench`.
 pub fn studio(a: crate::cli::BenchStudioArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../motif-studio/e2e/bench.mjs");
+    if !script.exists() {
+        // A binary installed away from its source tree (the build machine's path is all it knows).
+        return Err(crate::output::bad_input(
+            "bench studio runs from Motif's source tree (crates/motif-studio/e2e/bench.mjs), which this \
+             binary was not built in or which has moved: run it as `cargo run --release -- bench studio` \
+             in a clone, after scripts/studio-browser-setup.sh",
+        ));
+    }
     let modules = script.with_file_name("node_modules").join("playwright-core");
     if !modules.exists() {
         return Err(crate::output::bad_input(format!(

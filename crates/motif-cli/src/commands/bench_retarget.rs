@@ -169,13 +169,11 @@ pub fn run(a: BenchRetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     {
         models.push((name.to_string(), generate(name, g.seed)?.mesh, steps, false));
     }
-    let data = a.data.clone().or_else(|| motif_core::data::shared_data_dir(std::path::Path::new(".")));
+    let data = super::bench::data_dir(&a.data)?;
     match &data {
         Some(dir) => {
             for (label, file, steps) in REAL_MODELS {
-                let path = dir.join(file);
-                let mesh = motif_core::io::read_mesh(&path)
-                    .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+                let mesh = super::bench::read_data_mesh(dir, file)?;
                 models.push((label.to_string(), mesh, steps, true));
             }
         }

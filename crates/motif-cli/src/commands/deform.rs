@@ -215,5 +215,8 @@ fn with_flag_names(e: motif_deform::DeformError) -> anyhow::Error {
             return bad_input(format!("{flag}: {message}"));
         }
     }
+    if matches!(e, motif_deform::DeformError::SymmetryMismatch { .. }) {
+        return bad_input(format!("{e}; or pass --force to deform on the approximate symmetry"));
+    }
     e.into()
 }

@@ -17,8 +17,18 @@ pub fn run(a: StudioArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     }
     let root = a.root.canonicalize().map_err(|e| bad_input(format!("--root {}: {e}", a.root.display())))?;
     let model = match &a.model {
-        Some(m) => {
-            let m = m.canonicalize().map_err(|e| bad_input(format!("{}: {e}", m.display())))?;
+        Some(given) => {
+            // A path from the current folder, or else from the root (`--root data shelf.obj`).
+            let m = if !given.exists() && given.is_relative() && root.join(given).exists() {
+                root.join(given)
+            } else {
+                given.clone()
+            };
+            let m = m.canonicalize().map_err(|e| bad_input(format!("{}: {e}", given.display())))?;
+            if !m.is_file() {
+                return Err(bad_input(format!("{}: not a file", given.display())));
+            }
+            motif_core::io::Format::from_path(&m).map_err(|e| bad_input(format!("{e}")))?;
             let rel = m.strip_prefix(&root).map_err(|_| {
                 bad_input(format!(
                     "{}: outside the studio's root {} (start it with --root set to a folder that holds the model)",

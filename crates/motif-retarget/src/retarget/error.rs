@@ -57,7 +57,7 @@ pub enum RetargetError {
     },
     /// Shrinking would leave fewer voxels than the model needs along a direction.
     #[error(
-        "steps[{direction}] = {steps} shrinks direction {direction} from {input_voxels} to {output_voxels} cell(s); at least {minimum} must remain (steps >= {min_steps})"
+        "steps[{direction}] = {steps} shrinks direction {direction} from {input_voxels} to {output_voxels} voxel(s) of the retargeting grid (one principal offset long each; the end voxels may hold only part of a cell, such as a closing board, so the grid can count one more than the model's whole cells); at least {minimum} must remain (steps >= {min_steps})"
     )]
     ShrinkBelowOneCell {
         /// The direction index.
