@@ -274,8 +274,8 @@ pub fn preprocess(cloud: &PointCloud, o: &PreprocessOptions, force: bool) -> Res
     let mut warnings = Vec::new();
     let diagonal = principal_diagonal(&cloud.positions);
     if cloud.len() < 10 || diagonal.is_nan() || diagonal <= 0.0 {
-        // The ε the run would have used, so the report says what was asked for; a relative ε of
-        // a shape with no extent is 0.
+        // The ε asked for (for `Auto`, the thesis's, which a larger input would raise to its
+        // spacing), so the report does not say 0; a relative ε of a shape with no extent is 0.
         let epsilon = match o.epsilon {
             Epsilon::Absolute(e) => e,
             Epsilon::Relative(r) if diagonal > 0.0 => r * diagonal,

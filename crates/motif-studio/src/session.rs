@@ -659,7 +659,6 @@ pub fn export(
             written.push(s.sandbox.display(&file));
         }
     }
-    drop(writes);
     let mut out = Vec::new();
     if download {
         // The bytes just written, read back through the sandbox, for the browser to save.
@@ -671,6 +670,8 @@ pub fn export(
             out.push(Out::Binary(encode_file(&name, &bytes)));
         }
     }
+    // Read back before the lock goes, so that another session cannot have replaced the files.
+    drop(writes);
     out.insert(0, Out::Text(ServerMessage::Saved { paths: written }));
     Ok(out)
 }

@@ -77,15 +77,12 @@ pub fn run(a: AlignArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             })
             .count();
         if 2 * zero > n.len() {
-            super::note(
-                g,
-                format!(
-                    "warning: {}: {zero} of {} target normals are undetermined (degenerate triangles, or \
+            super::warn(format!(
+                "{}: {zero} of {} target normals are undetermined (degenerate triangles, or \
                      collinear or coincident points); aligning point-to-point instead",
-                    a.target.display(),
-                    n.len()
-                ),
-            );
+                a.target.display(),
+                n.len()
+            ));
             options.metric = IcpMetric::PointToPoint;
             target_normals = None;
         }

@@ -118,18 +118,15 @@ pub fn run(a: CurvatureArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         ms,
     };
     if r.fitted == 0 && r.points > 0 {
-        super::note(
-            g,
-            format!(
-                "warning: no point could be fitted: no neighbourhood ({}) holds enough points for a \
+        super::warn(format!(
+            "no point could be fitted: no neighbourhood ({}) holds enough points for a \
                  quadratic (6 or more, spread over the surface); use a larger --radius or -k",
-                match neighbourhood {
-                    Neighbourhood::Radius(r) => format!("radius {r}"),
-                    Neighbourhood::Knn(k) => format!("{k} nearest points"),
-                    Neighbourhood::Rings(n) => format!("{n} rings"),
-                }
-            ),
-        );
+            match neighbourhood {
+                Neighbourhood::Radius(r) => format!("radius {r}"),
+                Neighbourhood::Knn(k) => format!("{k} nearest points"),
+                Neighbourhood::Rings(n) => format!("{n} rings"),
+            }
+        ));
     }
     if !crate::output::json_on_stdout(&a.json.json) {
         super::note(

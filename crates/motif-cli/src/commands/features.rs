@@ -85,16 +85,13 @@ pub fn run_shot(a: ShotArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         ms_per_keypoint: if shots.is_empty() { 0.0 } else { ms / shots.len() as f64 },
     };
     if r.valid == 0 && r.keypoints > 0 {
-        super::note(
-            g,
-            format!(
-                "warning: none of the {} descriptors is valid: no keypoint has a neighbour within the \
+        super::warn(format!(
+            "none of the {} descriptors is valid: no keypoint has a neighbour within the \
                  support radius {} (the model is {:.4} across); use a larger --radius",
-                r.keypoints,
-                a.radius,
-                model.vertices.diagonal()
-            ),
-        );
+            r.keypoints,
+            a.radius,
+            model.vertices.diagonal()
+        ));
     }
     if !crate::output::json_on_stdout(&a.json.json) {
         super::note(

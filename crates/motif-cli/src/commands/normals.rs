@@ -55,17 +55,14 @@ pub fn run(a: NormalsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             .spin("normals", || estimate_normals_detailed(&model.vertices.positions, &opts))
             .with_context(|| a.input.display().to_string())?;
         if est.undetermined > 0 {
-            super::note(
-                g,
-                format!(
-                    "warning: {}: {} of {} points have {} nearest neighbours that coincide or lie on one line; \
+            super::warn(format!(
+                "{}: {} of {} points have {} nearest neighbours that coincide or lie on one line; \
                  their normals are arbitrary (duplicate points, or a scan line: try a larger -k)",
-                    a.input.display(),
-                    est.undetermined,
-                    model.vertices.len(),
-                    a.k
-                ),
-            );
+                a.input.display(),
+                est.undetermined,
+                model.vertices.len(),
+                a.k
+            ));
         }
         (est.normals, est.undetermined)
     };

@@ -166,13 +166,15 @@ pub(crate) fn unit_to_u8(v: f64) -> u8 {
 
 /// Collects faces as stored in a file, triangulates polygons and drops degenerate ones.
 ///
-/// A convex polygon (every corner turning the same way about its Newell normal) is split as a
-/// fan from its first corner, which is what every reader and writer of these formats does. A
-/// concave one is ear-clipped (earcut) in the plane across its Newell normal's largest axis, so
-/// that its triangles cover it without folding over one another whichever corner the file lists
-/// first; when ear clipping fails (a self-intersecting or repeated-corner polygon), the fan is
-/// kept. Triangles keep the polygon's winding. Polygons are triangulated in
-/// [`FaceSink::finish`], once every position is known (PLY may list faces first).
+/// A polygon is split as a fan from its first corner when it is added, which is what every
+/// reader and writer of these formats does, and is right for a convex polygon. Once every
+/// position is known ([`FaceSink::finish`]; PLY may list faces first), a concave polygon (a
+/// corner turning against its Newell normal) is ear-clipped (earcut) in the plane across the
+/// Newell normal's largest axis, relative to its first corner, and its fan triangles are replaced
+/// in place, so that its triangles cover it without folding over one another whichever corner
+/// the file lists first. Triangles keep the polygon's winding. A polygon with a repeated corner,
+/// or one that earcut cannot split into n − 2 triangles covering its area (self-intersecting,
+/// or two corners at one position), keeps its fan.
 ///
 /// A face is degenerate when it yields no triangle with three distinct vertices (for a
 /// triangle: fewer than 3 distinct indices). Degenerate faces are dropped and reported as a
@@ -186,10 +188,10 @@ pub(crate) struct FaceSink {
     first_degenerate: Option<Position>,
     /// Triangles dropped from polygons that still gave at least one good triangle.
     degenerate_fan_triangles: usize,
-    /// Polygons of more than three corners, triangulated in `finish`: where their triangles go
-    /// in `triangles`, their corners' range in `polygon_corners`, and where the face was read.
-    polygons: Vec<(usize, std::ops::Range<usize>, Position)>,
-    polygon_corners: Vec<u32>,
+    /// Polygons of more than three corners whose whole fan was kept: the index of their first
+    /// triangle in `triangles` and their number of triangles (their corners are read back from
+    /// the fan in `finish`).
+    polygons: Vec<(usize, u32)>,
 }
 
 impl FaceSink {
@@ -209,81 +211,94 @@ impl FaceSink {
             }
             return;
         }
-        if polygon.len() < 3 {
-            self.degenerate(pos);
-            return;
-        }
-        let start = self.polygon_corners.len();
-        self.polygon_corners.extend_from_slice(polygon);
-        self.polygons.push((self.triangles.len(), start..self.polygon_corners.len(), pos()));
-    }
-
-    /// Triangulates one polygon of more than three corners into `out`; returns the number of
-    /// fan triangles dropped for a repeated corner, or `None` when none is left.
-    fn triangulate(
-        polygon: &[u32],
-        positions: &[[f64; 3]],
-        earcut: &mut earcut::Earcut<f64>,
-        flat: &mut Vec<[f64; 2]>,
-        ears: &mut Vec<u32>,
-        out: &mut Vec<[u32; 3]>,
-    ) -> Option<usize> {
-        let before = out.len();
-        let at = |v: u32| positions.get(v as usize).copied().unwrap_or([0.0; 3]);
-        let n = polygon.len();
-        let distinct = {
-            let mut c = polygon.to_vec();
-            c.sort_unstable();
-            c.dedup();
-            c.len() == n
-        };
-        if distinct {
-            // Newell's normal, then the turn at each corner about it.
-            let mut normal = [0.0; 3];
-            for i in 0..n {
-                let (p, q) = (at(polygon[i]), at(polygon[(i + 1) % n]));
-                normal[0] += (p[1] - q[1]) * (p[2] + q[2]);
-                normal[1] += (p[2] - q[2]) * (p[0] + q[0]);
-                normal[2] += (p[0] - q[0]) * (p[1] + q[1]);
-            }
-            let concave = (0..n).any(|i| {
-                let (u, v, w) = (at(polygon[(i + n - 1) % n]), at(polygon[i]), at(polygon[(i + 1) % n]));
-                let (a, b) = (crate::geometry::sub(v, u), crate::geometry::sub(w, v));
-                crate::geometry::dot(crate::geometry::cross(a, b), normal) < 0.0
-            });
-            if concave {
-                let axis = (0..3).max_by(|&a, &b| normal[a].abs().total_cmp(&normal[b].abs())).unwrap_or(2);
-                let (d1, d2) = ((axis + 1) % 3, (axis + 2) % 3);
-                flat.clear();
-                flat.extend(polygon.iter().map(|&v| [at(v)[d1], at(v)[d2]]));
-                earcut.earcut_slice(flat, &[], ears);
-                if ears.len() == 3 * (n - 2) && earcut::deviation(flat.iter().copied(), &[], ears) < 1e-9 {
-                    let up = normal[axis].signum();
-                    for t in ears.chunks_exact(3) {
-                        let (a, b, c) = (t[0] as usize, t[1] as usize, t[2] as usize);
-                        let area = (flat[b][0] - flat[a][0]) * (flat[c][1] - flat[a][1])
-                            - (flat[c][0] - flat[a][0]) * (flat[b][1] - flat[a][1]);
-                        out.push(if area * up >= 0.0 {
-                            [polygon[a], polygon[b], polygon[c]]
-                        } else {
-                            [polygon[a], polygon[c], polygon[b]]
-                        });
-                    }
-                    return Some(0);
+        let first = self.triangles.len();
+        let mut good = 0;
+        let mut bad = 0;
+        if polygon.len() >= 3 {
+            let a = polygon[0];
+            for w in polygon[1..].windows(2) {
+                let (b, c) = (w[0], w[1]);
+                if a != b && b != c && a != c {
+                    self.triangles.push([a, b, c]);
+                    good += 1;
+                } else {
+                    bad += 1;
                 }
             }
         }
-        let a = polygon[0];
-        let mut bad = 0;
-        for w in polygon[1..].windows(2) {
-            let (b, c) = (w[0], w[1]);
-            if a != b && b != c && a != c {
-                out.push([a, b, c]);
-            } else {
-                bad += 1;
+        if good == 0 {
+            self.degenerate(pos);
+        } else {
+            self.degenerate_fan_triangles += bad;
+            if bad == 0 {
+                self.polygons.push((first, good));
             }
         }
-        (out.len() > before).then_some(bad)
+    }
+
+    /// Replaces the fan `tris` (a polygon's n − 2 triangles from its first corner) by an ear
+    /// clipping when the polygon is concave and earcut splits it cleanly. `corners`, `flat` and
+    /// `ears` are scratch buffers.
+    fn clip_concave(
+        tris: &mut [[u32; 3]],
+        positions: &[[f64; 3]],
+        earcut: &mut earcut::Earcut<f64>,
+        corners: &mut Vec<u32>,
+        flat: &mut Vec<[f64; 2]>,
+        ears: &mut Vec<u32>,
+    ) {
+        corners.clear();
+        corners.extend_from_slice(&tris[0]);
+        corners.extend(tris[1..].iter().map(|t| t[2]));
+        let n = corners.len();
+        let at = |v: u32| positions.get(v as usize).copied().unwrap_or([0.0; 3]);
+        // Newell's normal, then the turn at each corner about it.
+        let mut normal = [0.0; 3];
+        for i in 0..n {
+            let (p, q) = (at(corners[i]), at(corners[(i + 1) % n]));
+            normal[0] += (p[1] - q[1]) * (p[2] + q[2]);
+            normal[1] += (p[2] - q[2]) * (p[0] + q[0]);
+            normal[2] += (p[0] - q[0]) * (p[1] + q[1]);
+        }
+        let concave = (0..n).any(|i| {
+            let (u, v, w) = (at(corners[(i + n - 1) % n]), at(corners[i]), at(corners[(i + 1) % n]));
+            let (a, b) = (crate::geometry::sub(v, u), crate::geometry::sub(w, v));
+            crate::geometry::dot(crate::geometry::cross(a, b), normal) < 0.0
+        });
+        if !concave {
+            return;
+        }
+        // A repeated corner (a fan may keep all its triangles with one: 4 5 6 5) keeps the fan.
+        flat.clear();
+        let mut sorted = std::mem::take(ears);
+        sorted.clear();
+        sorted.extend_from_slice(corners);
+        sorted.sort_unstable();
+        let distinct = sorted.windows(2).all(|w| w[0] != w[1]);
+        *ears = sorted;
+        if !distinct {
+            return;
+        }
+        let axis = (0..3).max_by(|&a, &b| normal[a].abs().total_cmp(&normal[b].abs())).unwrap_or(2);
+        let (d1, d2) = ((axis + 1) % 3, (axis + 2) % 3);
+        // Relative to the first corner, so that far-off coordinates keep earcut's precision.
+        let o = at(corners[0]);
+        flat.extend(corners.iter().map(|&v| [at(v)[d1] - o[d1], at(v)[d2] - o[d2]]));
+        earcut.earcut_slice(flat, &[], ears);
+        if ears.len() != 3 * (n - 2) || earcut::deviation(flat.iter().copied(), &[], ears) >= 1e-9 {
+            return;
+        }
+        let up = normal[axis].signum();
+        for (t, e) in tris.iter_mut().zip(ears.chunks_exact(3)) {
+            let (a, b, c) = (e[0] as usize, e[1] as usize, e[2] as usize);
+            let area = (flat[b][0] - flat[a][0]) * (flat[c][1] - flat[a][1])
+                - (flat[c][0] - flat[a][0]) * (flat[b][1] - flat[a][1]);
+            *t = if area * up >= 0.0 {
+                [corners[a], corners[b], corners[c]]
+            } else {
+                [corners[a], corners[c], corners[b]]
+            };
+        }
     }
 
     /// Adds one triangle strip (indices already validated): triangle `i` is `s[i], s[i+1],
@@ -313,7 +328,7 @@ impl FaceSink {
         }
     }
 
-    /// Triangulates the polygons (see the type's documentation), reports dropped faces as
+    /// Ear-clips the concave polygons (see the type's documentation), reports dropped faces as
     /// warnings; errors when there were faces but none survived.
     pub(crate) fn finish(
         mut self,
@@ -322,24 +337,18 @@ impl FaceSink {
         warnings: &mut Vec<String>,
     ) -> Result<(Vec<[u32; 3]>, usize)> {
         if !self.polygons.is_empty() {
-            let mut merged = Vec::with_capacity(self.triangles.len() + self.polygon_corners.len());
-            let (mut earcut, mut flat, mut ears) = (earcut::Earcut::new(), Vec::new(), Vec::new());
-            let mut next = 0;
-            let polygons = std::mem::take(&mut self.polygons);
-            for (at, corners, pos) in polygons {
-                merged.extend_from_slice(&self.triangles[next..at]);
-                next = at;
-                let polygon = &self.polygon_corners[corners];
-                match Self::triangulate(polygon, positions, &mut earcut, &mut flat, &mut ears, &mut merged) {
-                    Some(bad) => self.degenerate_fan_triangles += bad,
-                    None => {
-                        self.degenerate_faces += 1;
-                        self.first_degenerate.get_or_insert(pos);
-                    }
-                }
+            let (mut earcut, mut corners, mut flat, mut ears) =
+                (earcut::Earcut::new(), Vec::new(), Vec::new(), Vec::new());
+            for &(first, count) in &self.polygons {
+                Self::clip_concave(
+                    &mut self.triangles[first..first + count as usize],
+                    positions,
+                    &mut earcut,
+                    &mut corners,
+                    &mut flat,
+                    &mut ears,
+                );
             }
-            merged.extend_from_slice(&self.triangles[next..]);
-            self.triangles = merged;
         }
         if self.source_faces > 0 && self.triangles.is_empty() {
             return Err(perr(
@@ -412,7 +421,16 @@ mod tests {
     /// is listed first; a fan from the reflex corner's neighbour used to fold over itself.
     #[test]
     fn concave_polygons_are_ear_clipped_from_any_first_corner() {
-        let dart = [[0.0, 0.0, 0.0], [2.0, 1.0, 0.0], [0.0, 2.0, 0.0], [1.0, 1.0, 0.0]];
+        // Also far from the origin, where earcut's area check needs coordinates relative to the
+        // polygon.
+        for shift in [0.0, 1e7] {
+            concave_dart(shift);
+        }
+    }
+
+    fn concave_dart(shift: f64) {
+        let dart = [[0.0, 0.0, 0.0], [2.0, 1.0, 0.0], [0.0, 2.0, 0.0], [1.0, 1.0, 0.0]]
+            .map(|p: [f64; 3]| [p[0] + shift, p[1] - shift, p[2] + shift]);
         for first in 0..4u32 {
             for reversed in [false, true] {
                 let mut polygon: Vec<u32> = (0..4).map(|i| (first + i) % 4).collect();
@@ -420,11 +438,16 @@ mod tests {
                     polygon.reverse();
                 }
                 let mut s = FaceSink::default();
-                s.add(&polygon, || Position::Line(1));
+                // A triangle before and after: the polygon's triangles stay in place.
+                s.add(&[0, 1, 2], || Position::Line(1));
+                s.add(&polygon, || Position::Line(2));
+                s.add(&[0, 2, 3], || Position::Line(3));
                 let (t, _) = s.finish(Path::new("x"), &dart, &mut Vec::new()).unwrap();
-                assert_eq!(t.len(), 2, "{polygon:?}");
+                assert_eq!(t.len(), 4, "{polygon:?}");
+                assert_eq!((t[0], t[3]), ([0, 1, 2], [0, 2, 3]));
+                let t = &t[1..3];
                 let mut area = 0.0;
-                for tri in &t {
+                for tri in t {
                     let [a, b, c] = tri.map(|v| dart[v as usize]);
                     let z = crate::geometry::cross(crate::geometry::sub(b, a), crate::geometry::sub(c, a))[2];
                     assert!(
@@ -433,7 +456,7 @@ mod tests {
                     );
                     area += 0.5 * z.abs();
                 }
-                assert!((area - 1.0).abs() < 1e-12, "{polygon:?}: area {area}");
+                assert!((area - 1.0).abs() < 1e-6, "{polygon:?}: area {area}");
             }
         }
     }

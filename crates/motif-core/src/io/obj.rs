@@ -59,7 +59,9 @@ pub(super) fn read(bytes: &[u8], path: &Path) -> Result<Model> {
     let (mut carry, mut carry_line, mut joined) = (Vec::new(), 0, Vec::new());
 
     for (ln, raw) in lines {
-        if let Some(head) = raw.trim_ascii_end().strip_suffix(b"\\") {
+        // A comment is not continued (a Windows path ending in `\` would swallow a statement).
+        let comment = carry.is_empty() && raw.trim_ascii_start().starts_with(b"#");
+        if let Some(head) = raw.trim_ascii_end().strip_suffix(b"\\").filter(|_| !comment) {
             if carry.is_empty() {
                 carry_line = ln;
             }
@@ -383,6 +385,9 @@ mod tests {
         // An error in a continued statement is reported at its first line.
         assert_eq!(line_of(parse("v 0 0 0\nv 1 \\\n x 0\n").unwrap_err()), 2);
         assert_eq!(line_of(parse("v 0 0 0\nf 1 \\\n").unwrap_err()), 2);
+        // A comment ending in a backslash ends at its line.
+        let m = parse("# C:\\models\\\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+        assert_eq!(m.vertices.positions.len(), 3);
     }
 
     #[test]

@@ -116,23 +116,25 @@ pub(super) fn read(bytes: &[u8], path: &Path) -> Result<Model> {
             k = 6;
         }
         if let Some(c) = &mut colors {
-            let mut rgb = [0.0; 3];
+            let mut rgb = [(0.0, false); 3];
             for (j, v) in rgb.iter_mut().enumerate() {
-                let (value, real) = color(path, pos, toks[k + j])?;
-                *v = value;
-                any_real |= real;
+                *v = color(path, pos, toks[k + j])?;
+                any_real |= v.1;
             }
             c.push(rgb);
         }
     }
     // Colours are 0..1 reals or 0..255 integers for the whole file: one component written as a
     // real (`0.5`, `1.0`) makes a `1` elsewhere mean full intensity, not 1/255 (`%g` writes 1.0
-    // as `1`). A component above 1 can only be on the 0..255 scale.
+    // as `1`). A file whose reals include one above 1 mixes the scales, and each number is then
+    // read by its own form (integers 0..255, reals 0..1).
+    let largest = colors.iter().flatten().flatten().filter(|v| v.1).fold(0.0f64, |m, v| m.max(v.0));
+    let unit = any_real && largest <= 1.0 + 1e-6;
     let colors = colors.map(|c| {
         c.into_iter()
             .map(|rgb| {
-                rgb.map(|v| {
-                    if any_real && v <= 1.0 {
+                rgb.map(|(v, real)| {
+                    if unit || real {
                         super::common::unit_to_u8(v)
                     } else {
                         v.clamp(0.0, 255.0).round() as u8
