@@ -48,6 +48,9 @@ const MAX_CANDIDATES: usize = 4_000_000;
 /// guess the radius of a target count (hexagonal packing gives 0.87; random maximal sets ~0.7).
 const AREA_PER_SAMPLE: f64 = 0.7;
 
+/// The default number of samples ([`SymmetricSamplingOptions::default`]).
+pub const DEFAULT_SAMPLE_COUNT: usize = 400;
+
 /// The Poisson-disc radius that `count` samples on a surface of area `area` come out at, about
 /// (the spacing [`SampleSpacing::Count`] starts its search from). Handle regions narrower than
 /// this may hold no sample.
@@ -100,7 +103,7 @@ pub struct SymmetricSamplingOptions {
 impl Default for SymmetricSamplingOptions {
     fn default() -> Self {
         SymmetricSamplingOptions {
-            spacing: SampleSpacing::Count(400),
+            spacing: SampleSpacing::Count(DEFAULT_SAMPLE_COUNT),
             count_tolerance: 0.05,
             seed: 0,
             oversampling: 20.0,

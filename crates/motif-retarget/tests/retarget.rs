@@ -852,14 +852,22 @@ fn infinite_seams_are_counted_exactly_when_the_energy_is_infinite() {
     assert!(infinite > 0, "some misaligned offsets give infinite seams");
 }
 
+/// The shared data folder (`MOTIF_DATA` or `shared/data` above the crate), or `None` after one
+/// line saying the test is skipped.
+fn shared_data() -> Option<std::path::PathBuf> {
+    let dir = motif_core::data::shared_data_dir(std::path::Path::new(env!("CARGO_MANIFEST_DIR")));
+    if dir.is_none() {
+        println!("skipping: no shared data found (set MOTIF_DATA)");
+    }
+    dir
+}
+
 /// Caps close what seams of infinite cost leave open, and the hole fill what is left (slits where
 /// neighbouring copies differ), on the closed grid-like models of the shared data (`MOTIF_DATA`
 /// or `shared/data` above the crate); neither changes anything else.
 #[test]
 fn caps_and_fills_close_the_openings_of_real_models() {
-    let Some(dir) = motif_core::data::shared_data_dir(std::path::Path::new(env!("CARGO_MANIFEST_DIR")))
-    else {
-        println!("skipping: no shared data found (set MOTIF_DATA)");
+    let Some(dir) = shared_data() else {
         return;
     };
     use motif_retarget::offsets::{OffsetOptions, analyze_offsets};
@@ -987,9 +995,7 @@ const TURN: [[f64; 3]; 3] = [
 /// caps over a T-junction (4 edges of three triangles, 4 used twice the same way).
 #[test]
 fn turned_real_models_stitch_into_consistent_closed_surfaces() {
-    let Some(dir) = motif_core::data::shared_data_dir(std::path::Path::new(env!("CARGO_MANIFEST_DIR")))
-    else {
-        println!("skipping: no shared data found (set MOTIF_DATA)");
+    let Some(dir) = shared_data() else {
         return;
     };
     use motif_retarget::offsets::{OffsetOptions, analyze_offsets};
@@ -1082,9 +1088,7 @@ fn turned_real_models_stitch_into_consistent_closed_surfaces() {
 /// has): at most 3 per output.
 #[test]
 fn the_cheese_grown_with_its_offsets_in_every_order_stitches_closed() {
-    let Some(dir) = motif_core::data::shared_data_dir(std::path::Path::new(env!("CARGO_MANIFEST_DIR")))
-    else {
-        println!("skipping: no shared data found (set MOTIF_DATA)");
+    let Some(dir) = shared_data() else {
         return;
     };
     use motif_retarget::offsets::{OffsetOptions, analyze_offsets};

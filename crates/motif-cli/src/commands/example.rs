@@ -88,11 +88,8 @@ fn sample_drag(mesh: &motif_core::TriMesh) -> motif_deform::HandlesFile {
             .max_by(|p, q| (sign * p[long]).total_cmp(&(sign * q[long])))
             .unwrap_or(bb.center())
     };
-    let count = match motif_deform::symmetric_sampling::SymmetricSamplingOptions::default().spacing {
-        motif_deform::symmetric_sampling::SampleSpacing::Count(n) => n,
-        motif_deform::symmetric_sampling::SampleSpacing::Radius(_) => 400,
-    };
-    let spacing = motif_deform::symmetric_sampling::radius_for_count(mesh.area(), count);
+    use motif_deform::symmetric_sampling::{DEFAULT_SAMPLE_COUNT, radius_for_count};
+    let spacing = radius_for_count(mesh.area(), DEFAULT_SAMPLE_COUNT);
     let r = (0.05 * bb.diagonal()).max(2.0 * spacing);
     let handles = vec![
         Handle::fixed(Region::Sphere { center: end(-1.0), radius: r }),
