@@ -21,6 +21,13 @@
 //! ([`AnnotatedClassReport`], [`DetectedClassReport`]): which annotated instances no detected
 //! box locates, which are located but credited to no class, and how much of each detected class
 //! the precision credits. The per-class terms add up to exactly the P and R above.
+//!
+//! Also beyond the thesis, each report bounds what regrouping the detected boxes could reach
+//! ([`EvalReport::located_recall`]): the recall counts, per annotated class, at most the
+//! instances some detected box matches, so no grouping or pruning of these boxes scores a recall
+//! above the share of annotated instances they locate, nor (with P ≤ 1) an F above
+//! 2R / (1 + R) for that share. The gap between F and this bound is what grouping and pruning
+//! lose; the gap between the bound and 1 is blocks no box locates.
 
 use serde::{Deserialize, Serialize};
 
@@ -124,6 +131,15 @@ pub struct EvalReport {
     /// which annotated class (see [`DetectedClassReport`]), in the detection's order.
     #[serde(default)]
     pub detected: Vec<DetectedClassReport>,
+    /// Share of the annotated instances that some detected box matches at τ (Σ
+    /// [`AnnotatedClassReport::found`] over Σᵢ |𝐆ⁱ|; 1 when nothing is annotated): the highest
+    /// recall any grouping or pruning of the detected boxes can score (module documentation).
+    #[serde(default)]
+    pub located_recall: f64,
+    /// 2R / (1 + R) for R = [`Self::located_recall`]: the highest F any grouping or pruning of
+    /// the detected boxes can score.
+    #[serde(default)]
+    pub located_f: f64,
 }
 
 /// One annotated class's part in the recall (not in the thesis; a diagnosis of where recall is
@@ -225,6 +241,12 @@ pub struct EvalSummary {
     /// Per annotated class name, summed over the scenes, in order of first appearance.
     #[serde(default)]
     pub annotated: Vec<AnnotatedClassTotals>,
+    /// Mean of the per-scene [`EvalReport::located_recall`].
+    #[serde(default)]
+    pub located_recall: f64,
+    /// Mean of the per-scene [`EvalReport::located_f`].
+    #[serde(default)]
+    pub located_f: f64,
 }
 
 /// The overlap ratio vol(A ∩ B) / max(vol(A), vol(B)) of two boxes given by their corners, or
@@ -362,7 +384,7 @@ pub fn evaluate(
     }
 
     let tau = options.tau;
-    let annotated = ground_truth
+    let annotated: Vec<AnnotatedClassReport> = ground_truth
         .classes
         .iter()
         .enumerate()
@@ -395,6 +417,10 @@ pub fn evaluate(
         })
         .collect();
 
+    let n_g: usize = pw.g_sizes.iter().sum();
+    let located: usize = annotated.iter().map(|c| c.found).sum();
+    let located_recall = if n_g > 0 { located as f64 / n_g as f64 } else { 1.0 };
+
     let all = vec![true; n_classes];
     let stress = options
         .stress_taus()
@@ -419,6 +445,8 @@ pub fn evaluate(
         ground_truth_instances: ground_truth.instance_count(),
         annotated,
         detected,
+        located_recall,
+        located_f: f_measure(1.0, located_recall),
     })
 }
 
@@ -461,6 +489,8 @@ pub fn evaluate_many<'a>(
     Ok(EvalSummary {
         options: options.clone(),
         annotated,
+        located_recall: mean(&|s| s.located_recall),
+        located_f: mean(&|s| s.located_f),
         precision: mean(&|s| s.precision),
         recall: mean(&|s| s.recall),
         f: mean(&|s| s.f),

@@ -115,6 +115,34 @@ fn per_class_breakdown_names_missed_and_mixed_instances() {
 }
 
 #[test]
+fn located_share_bounds_every_regrouping() {
+    let gt = scene(vec![class(&[0.0, 10.0, 20.0]), class(&[100.0, 110.0, 120.0])]);
+    // Class 0 mixes two windows, a door and a box far from everything; class 1 holds two doors
+    // and a second box on the window at x = 0 (overlap ratio 0.9). The window at 20 is missed.
+    let det = scene(vec![class(&[0.0, 10.0, 100.0, 500.0]), class(&[110.0, 120.0, 0.1])]);
+    let rep = evaluate(&det, &gt, &EvalOptions::default()).expect("valid input");
+    // As detected: P = (2 + 2) / 7, R = (2 + 2) / 6.
+    assert!(close(rep.precision, 4.0 / 7.0) && close(rep.recall, 4.0 / 6.0));
+    // Located: 5 of 6, so R ≤ 5/6 and F ≤ 2 · (5/6) / (1 + 5/6) = 10/11.
+    assert!(close(rep.located_recall, 5.0 / 6.0), "{}", rep.located_recall);
+    assert!(close(rep.located_f, 10.0 / 11.0), "{}", rep.located_f);
+    // The best regrouping of these boxes reaches the bound: windows {0, 10}, doors {100, 110,
+    // 120}, the box at 500 and the repeat at 0.1 dropped.
+    let best = scene(vec![class(&[0.0, 10.0]), class(&[100.0, 110.0, 120.0])]);
+    let b = evaluate(&best, &gt, &EvalOptions::default()).expect("valid input");
+    assert!(close(b.recall, rep.located_recall) && close(b.f, rep.located_f));
+    // The mean over scenes is the mean of the scenes'.
+    let summary = evaluate_many([(&det, &gt), (&gt.clone(), &gt)], &EvalOptions::default()).expect("valid");
+    assert!(close(summary.scenes[1].located_f, 1.0));
+    assert!(close(summary.located_recall, (5.0 / 6.0 + 1.0) / 2.0));
+    assert!(close(summary.located_f, (10.0 / 11.0 + 1.0) / 2.0));
+    // Nothing located: no regrouping recalls anything.
+    let far = scene(vec![class(&[500.0, 510.0])]);
+    let r = evaluate(&far, &gt, &EvalOptions::default()).expect("valid input");
+    assert_eq!((r.located_recall, r.located_f), (0.0, 0.0));
+}
+
+#[test]
 fn multiple_intersections_do_not_over_count() {
     // One big detected box covering two GT cubes: |D ∩ G| = 1 (the big box) but |G ∩ D| = 2; the
     // min keeps 1. The big box [0, 2] × [0, 1] × [0, 1] has volume 2, each cube overlaps with 1:
