@@ -701,8 +701,9 @@ pub struct BenchDetectArgs {
     #[arg(long)]
     pub no_content: bool,
     /// Also print, per level and annotated class, how many instances EM + SC located (some
-    /// detected box matches) and how many the recall credited, summed over the scenes (the JSON
-    /// report always has them, for every method).
+    /// detected box matches) and how many the recall credited, summed over the scenes, and the
+    /// R and F that no grouping or pruning of its boxes can exceed (the JSON report always has
+    /// them, for every method).
     #[arg(long)]
     pub per_class: bool,
     /// EM + SC on the medium scenes (or the first level run): mean PR curve, stress curve and
@@ -980,8 +981,9 @@ pub struct EvalArgs {
     #[arg(long, value_name = "PNG")]
     pub plot: Option<PathBuf>,
     /// Also print, per annotated class (summed by name over the scenes), how many instances some
-    /// detected box locates and how many the recall credits; for one scene, also per detected
-    /// class how many instances the precision credits. The JSON report always has both.
+    /// detected box locates and how many the recall credits, and the R and F that no grouping or
+    /// pruning of these boxes can exceed; for one scene, also per detected class how many
+    /// instances the precision credits. The JSON report always has them.
     #[arg(long)]
     pub per_class: bool,
     #[command(flatten)]

@@ -909,7 +909,7 @@ fn eval_scores_a_detection_against_ground_truth() {
     // window: 1 scene, 2 instances, 1 found, 1 recalled, 1 missed, 0 elsewhere.
     assert_eq!(cols, ["window", "1", "2", "1", "1", "1", "0"], "{out}");
     // 1 of 2 annotated windows located: no regrouping scores R > 0.5 or F > 2 · 0.5 / 1.5.
-    assert!(out.contains("located: 50.0% of the annotated instances; no grouping or pruning of these boxes scores R > 0.500 or F > 0.667"), "{out}");
+    assert!(out.contains("located by some box: 50.0% of the annotated instances; no grouping or pruning of these boxes scores R > 0.500 or F > 0.667"), "{out}");
     assert!((r["located_f"].as_f64().unwrap() - 2.0 / 3.0).abs() < 1e-12, "{r}");
     // Detected classes: class_1 (the spurious box) is credited nothing.
     assert!(

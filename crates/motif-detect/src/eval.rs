@@ -26,8 +26,9 @@
 //! ([`EvalReport::located_recall`]): the recall counts, per annotated class, at most the
 //! instances some detected box matches, so no grouping or pruning of these boxes scores a recall
 //! above the share of annotated instances they locate, nor (with P ≤ 1) an F above
-//! 2R / (1 + R) for that share. The gap between F and this bound is what grouping and pruning
-//! lose; the gap between the bound and 1 is blocks no box locates.
+//! 2R / (1 + R) for that share. It is an upper bound, not always reached (a box spanning two
+//! blocks locates both but can be credited for one), so the gap between the bound and 1 is at
+//! least what blocks no box locates cost.
 
 use serde::{Deserialize, Serialize};
 
@@ -132,13 +133,12 @@ pub struct EvalReport {
     #[serde(default)]
     pub detected: Vec<DetectedClassReport>,
     /// Share of the annotated instances that some detected box matches at τ (Σ
-    /// [`AnnotatedClassReport::found`] over Σᵢ |𝐆ⁱ|; 1 when nothing is annotated): the highest
-    /// recall any grouping or pruning of the detected boxes can score (module documentation).
-    #[serde(default)]
+    /// [`AnnotatedClassReport::found`] over Σᵢ |𝐆ⁱ|; 1 when nothing is annotated): no grouping
+    /// or pruning of the detected boxes scores a higher recall (module documentation). An upper
+    /// bound, not always reached: one box over two blocks locates both but is credited once.
     pub located_recall: f64,
-    /// 2R / (1 + R) for R = [`Self::located_recall`]: the highest F any grouping or pruning of
-    /// the detected boxes can score.
-    #[serde(default)]
+    /// 2R / (1 + R) for R = [`Self::located_recall`]: no grouping or pruning of the detected
+    /// boxes scores a higher F.
     pub located_f: f64,
 }
 
@@ -241,11 +241,11 @@ pub struct EvalSummary {
     /// Per annotated class name, summed over the scenes, in order of first appearance.
     #[serde(default)]
     pub annotated: Vec<AnnotatedClassTotals>,
-    /// Mean of the per-scene [`EvalReport::located_recall`].
-    #[serde(default)]
+    /// Mean of the per-scene [`EvalReport::located_recall`] (a scene with nothing annotated
+    /// counts as 1).
     pub located_recall: f64,
-    /// Mean of the per-scene [`EvalReport::located_f`].
-    #[serde(default)]
+    /// Mean of the per-scene [`EvalReport::located_f`]: like F, a mean of the scenes' values,
+    /// not 2R / (1 + R) of the mean R.
     pub located_f: f64,
 }
 
@@ -417,9 +417,10 @@ pub fn evaluate(
         })
         .collect();
 
-    let n_g: usize = pw.g_sizes.iter().sum();
+    let ground_truth_instances = ground_truth.instance_count();
     let located: usize = annotated.iter().map(|c| c.found).sum();
-    let located_recall = if n_g > 0 { located as f64 / n_g as f64 } else { 1.0 };
+    let located_recall =
+        if ground_truth_instances > 0 { located as f64 / ground_truth_instances as f64 } else { 1.0 };
 
     let all = vec![true; n_classes];
     let stress = options
@@ -442,7 +443,7 @@ pub fn evaluate(
         detected_classes: n_classes,
         detected_instances: detection.instance_count(),
         ground_truth_classes: ground_truth.classes.len(),
-        ground_truth_instances: ground_truth.instance_count(),
+        ground_truth_instances,
         annotated,
         detected,
         located_recall,

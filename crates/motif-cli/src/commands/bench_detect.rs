@@ -42,9 +42,9 @@ struct Row {
     median_seconds: f64,
     /// Per annotated class, summed over the scenes: instances, located, credited by the recall.
     annotated: Vec<AnnotatedClassTotals>,
-    /// Mean share of the annotated instances some detected box locates, and 2R / (1 + R) for it:
-    /// the highest R and F any grouping or pruning of the detected boxes scores
-    /// (`motif_detect::eval`).
+    /// Means of the scenes' share of annotated instances some detected box locates and of 2R /
+    /// (1 + R) for it: no grouping or pruning of the detected boxes scores a higher R or F
+    /// (upper bounds, `motif_detect::eval`).
     located_recall: f64,
     located_f: f64,
 }
@@ -261,8 +261,10 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                     .filter(|r| r.method == "EM + SC")
                     .flat_map(|r| r.annotated.iter().map(|t| (Some(r.difficulty), t))),
             );
-            println!("EM + SC: the most any grouping or pruning of its boxes could score (blocks located):");
-            println!("{:<8} {:>8} {:>8}   (R, F as detected)", "level", "R max", "F max");
+            println!(
+                "EM + SC: no grouping or pruning of its boxes scores more (from the blocks they locate):"
+            );
+            println!("{:<8} {:>8} {:>8}   (R, F as detected)", "level", "R bound", "F bound");
             for r in rows.iter().filter(|r| r.method == "EM + SC") {
                 println!(
                     "{:<8} {:>8.3} {:>8.3}   ({:.3}, {:.3})",

@@ -70,13 +70,15 @@ pub fn run(a: EvalArgs, g: &GlobalArgs) -> anyhow::Result<()> {
 /// The `--per-class` tables: annotated classes summed by name, then (one scene) detected classes.
 fn print_per_class(summary: &EvalSummary) {
     print_annotated(summary.annotated.iter().map(|t| (None, t)));
-    println!(
-        "located: {:.1}% of the annotated instances{}; no grouping or pruning of these boxes scores R > {:.3} or F > {:.3}",
-        100.0 * summary.located_recall,
-        if summary.scenes.len() > 1 { " (mean)" } else { "" },
-        summary.located_recall,
-        summary.located_f
-    );
+    if summary.scenes.iter().any(|s| s.ground_truth_instances > 0) {
+        println!(
+            "located by some box: {:.1}% of the annotated instances{}; no grouping or pruning of these boxes scores R > {:.3} or F > {:.3}",
+            100.0 * summary.located_recall,
+            if summary.scenes.len() > 1 { " (mean of the scenes' shares)" } else { "" },
+            summary.located_recall,
+            summary.located_f
+        );
+    }
     if let [scene] = summary.scenes.as_slice() {
         let width = scene.detected.iter().map(|c| c.name.len()).max().unwrap_or(0).max(14);
         println!("{:<width$}  {:>9}  {:>8}  against", "detected class", "instances", "credited");
