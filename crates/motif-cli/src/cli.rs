@@ -700,6 +700,13 @@ pub struct BenchDetectArgs {
     /// images share nothing). No effect with `--regroup none`.
     #[arg(long)]
     pub no_content: bool,
+    /// Keep the classes of the content step instead of moving each instance again to the class
+    /// whose members' depth images, drawn at one common scale and compared at the best of a few
+    /// shifts, its own resembles most (the extent stage's last step, motif_detect::aligned; not
+    /// in the thesis, on by default: a box fitted to half a window, or without its shutters,
+    /// still finds the window under it). No effect with `--regroup none`.
+    #[arg(long)]
+    pub no_aligned: bool,
     /// Also print, per level and annotated class, how many instances EM + SC located (some
     /// detected box matches) and how many the recall credited, summed over the scenes, and the
     /// R and F that no grouping or pruning of its boxes can exceed (the JSON report always has
@@ -955,6 +962,13 @@ pub struct DetectArgs {
     /// images share nothing). No effect with `--regroup none`.
     #[arg(long)]
     pub no_content: bool,
+    /// Keep the classes of the content step instead of moving each instance again to the class
+    /// whose members' depth images, drawn at one common scale and compared at the best of a few
+    /// shifts, its own resembles most (the extent stage's last step, motif_detect::aligned; not
+    /// in the thesis, on by default: a box fitted to half a window, or without its shutters,
+    /// still finds the window under it). No effect with `--regroup none`.
+    #[arg(long)]
+    pub no_aligned: bool,
     /// Keep the extent stage's boxes as grown instead of fitting each to the points it holds
     /// (a step of the stage, on by default: boxes padded around creases and grown to segments
     /// reach past the block; fitted, they overlap the true blocks more, F at τ = 0.5 rose from

@@ -1,6 +1,7 @@
-//! Classes refined by what their instances hold (not in the thesis): the last step of
+//! Classes refined by what their instances hold (not in the thesis): step 8 of
 //! [`crate::extent`], which reassigns instances ([`reassign`]) and then prunes incoherent classes
-//! and unlike instances ([`prune`]).
+//! and unlike instances ([`prune`]). Step 9, [`crate::aligned`], reassigns them once more by
+//! images drawn at one common scale and compared at the best shift.
 //!
 //! Why: under strong per-instance variation the sizes of two blocks overlap, and the split and
 //! merge by size (extent steps 4–5) mixes them. On hard facades (15% non-rigid variation) the
@@ -264,7 +265,7 @@ pub struct Descriptor {
 }
 
 /// The two axes other than `thin`, ascending.
-fn plane_axes(thin: usize) -> [usize; 2] {
+pub(crate) fn plane_axes(thin: usize) -> [usize; 2] {
     let (a, b) = ((thin + 1) % 3, (thin + 2) % 3);
     [a.min(b), a.max(b)]
 }
@@ -286,7 +287,26 @@ pub fn describe(
         return None;
     }
     let h = [0.5 * o.window * e[a0], 0.5 * o.window * e[a1]];
-    let ht = 0.5 * o.window * e[thin];
+    let (cells, confidence) = depth_image(c, h, 0.5 * o.window * e[thin], o.grid, thin, points, hash, eps)?;
+    Some(Descriptor { cells, confidence, log_size: [e[a0].ln(), e[a1].ln()] })
+}
+
+/// The `n × n` depth image (values in ε, confidences) of the window of half-sizes `h` over the
+/// plane axes and `ht` along `thin`, centred on `c` (module documentation: depths from the
+/// median of the window's points, bilinear weights, confidence Σw / (Σw + 1)); `None` when the
+/// window holds no point. Also used by [`crate::aligned`].
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn depth_image(
+    c: Point3,
+    h: [f64; 2],
+    ht: f64,
+    n: usize,
+    thin: usize,
+    points: &[Point3],
+    hash: &SpatialHash,
+    eps: f64,
+) -> Option<(Vec<f64>, Vec<f64>)> {
+    let [a0, a1] = plane_axes(thin);
     let radius = (h[0] * h[0] + h[1] * h[1] + ht * ht).sqrt();
     // (u, v, coordinate along thin) of the points in the window.
     let mut inside: Vec<(f64, f64, f64)> = Vec::new();
@@ -297,11 +317,10 @@ pub fn describe(
             inside.push((du, dv, p[thin]));
         }
     });
-    if inside.is_empty() {
+    if inside.is_empty() || n == 0 {
         return None;
     }
     let wall = median(inside.iter().map(|q| q.2).collect());
-    let n = o.grid;
     let (mut sw, mut sd) = (vec![0.0; n * n], vec![0.0; n * n]);
     let scale = n as f64;
     for &(du, dv, t) in &inside {
@@ -330,7 +349,7 @@ pub fn describe(
     }
     let cells = sd.iter().zip(&sw).map(|(d, w)| if *w > 0.0 { d / w } else { 0.0 }).collect();
     let confidence = sw.iter().map(|w| w / (w + 1.0)).collect();
-    Some(Descriptor { cells, confidence, log_size: [e[a0].ln(), e[a1].ln()] })
+    Some((cells, confidence))
 }
 
 /// d(a, b) of the module documentation.
@@ -468,11 +487,27 @@ pub fn reassign(
     if report.moved == 0 {
         return report;
     }
-    // Rebuild: each class keeps its instances that stayed, in order, then takes the newcomers
-    // in the order of their old classes.
+    let (duplicates, dropped) = apply_labels(classes, &items, &label, merge_overlap);
+    report.duplicates = duplicates;
+    report.dropped_classes = dropped;
+    report
+}
+
+/// Moves instance `items[k]` (class, index) of `classes` to class `label[k]`: each class keeps
+/// its instances that stayed, in order, then takes the newcomers in the order of their old
+/// classes, except those that repeat one of its instances by the `merge_overlap` test
+/// (instances that were there first win). Classes left with fewer than two instances are
+/// dropped and extents recomputed. Returns (newcomers dropped as repeats, classes dropped).
+pub(crate) fn apply_labels(
+    classes: &mut Vec<Class>,
+    items: &[(usize, usize)],
+    label: &[usize],
+    merge_overlap: f64,
+) -> (usize, usize) {
+    let mut duplicates = 0;
     let mut leaving = vec![Vec::new(); classes.len()];
     let mut arriving: Vec<Vec<Instance>> = vec![Vec::new(); classes.len()];
-    for (&(ci, k), &l) in items.iter().zip(&label) {
+    for (&(ci, k), &l) in items.iter().zip(label) {
         if l != ci {
             leaving[ci].push(k);
             arriving[l].push(classes[ci].instances[k].clone());
@@ -488,7 +523,7 @@ pub fn reassign(
     for (c, new) in classes.iter_mut().zip(arriving) {
         for inst in new {
             if overlaps_any(&inst, &c.instances, merge_overlap) {
-                report.duplicates += 1;
+                duplicates += 1;
             } else {
                 c.instances.push(inst);
             }
@@ -496,11 +531,10 @@ pub fn reassign(
     }
     let before = classes.len();
     classes.retain(|c| c.instances.len() >= 2);
-    report.dropped_classes = before - classes.len();
     for c in classes.iter_mut() {
         c.extent = median_box_size(&c.instances);
     }
-    report
+    (duplicates, before - classes.len())
 }
 
 /// Share of `x`'s relief that the image `m` leaves: the cell part of [`distance`] over the
@@ -603,19 +637,19 @@ pub fn prune(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// Grid spacing of the test walls, and ε.
-    const H: f64 = 0.04;
+    pub(crate) const H: f64 = 0.04;
 
     /// A window of the test wall: centre x, its scale on x and y, and its style (true: two
     /// transoms, a mullion and a cornice above; false: one transom and a sill below).
-    type Window = (f64, f64, f64, bool);
+    pub(crate) type Window = (f64, f64, f64, bool);
 
     /// The box of `w`: its 1.2 × 1.6 m opening times its scale, centred at (x, 1.5), from the
     /// back of its recess to the front of its cornice or sill.
-    fn opening(w: &Window) -> Aabb {
+    pub(crate) fn opening(w: &Window) -> Aabb {
         let (x, sx, sy, _) = *w;
         let (hw, hh) = (0.6 * sx, 0.8 * sy);
         Aabb { min: [x - hw, 1.5 - hh, -0.2], max: [x + hw, 1.5 + hh, 0.15] }
@@ -623,7 +657,7 @@ mod tests {
 
     /// A wall in z = 0 sampled every [`H`] as a height field: the `windows` recessed 0.2 m,
     /// their bars 0.1 m behind the wall, cornices and sills 0.15 m in front of it.
-    fn wall(windows: &[Window]) -> Vec<Point3> {
+    pub(crate) fn wall(windows: &[Window]) -> Vec<Point3> {
         occluded_wall(windows, &[])
     }
 
@@ -669,7 +703,7 @@ mod tests {
     }
 
     /// The windows of styles `two_bars` ([`windows`]), their wall and its spatial hash.
-    fn scene(two_bars: [bool; 8]) -> (Vec<Window>, Vec<Point3>, SpatialHash) {
+    pub(crate) fn scene(two_bars: [bool; 8]) -> (Vec<Window>, Vec<Point3>, SpatialHash) {
         let ws = windows(two_bars);
         let pts = wall(&ws);
         let hash = SpatialHash::new(&pts, 8.0 * H);
@@ -686,7 +720,7 @@ mod tests {
             .collect()
     }
 
-    fn class_of(ws: &[Window], members: &[usize], word: usize, turn: f64) -> Class {
+    pub(crate) fn class_of(ws: &[Window], members: &[usize], word: usize, turn: f64) -> Class {
         let instances = members.iter().map(|&k| instance(k, opening(&ws[k]), turn)).collect();
         Class { words: vec![word], centre_word: word, extent: [1.2, 1.6, 0.2], instances, cluster: word }
     }

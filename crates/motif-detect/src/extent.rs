@@ -75,6 +75,10 @@
 //!    what tells them apart is what the box holds (one transom or two, shutters beside it).
 //!    Then, by the same depth images, classes that hold no one kind of block (clutter boxes of
 //!    unlike sizes) are dropped, and so are instances unlike the rest of their class.
+//! 9. **Aligned content.** Each instance moves again, to the class whose members' depth images,
+//!    drawn at one scale common to the scene and compared at the best of a few relative shifts,
+//!    its own resembles most ([`crate::aligned`]): a box fitted to half a window, or one that
+//!    left a window's shutters out, still pictures the window under it.
 //!
 //! # On by default
 //! [`Regroup::Extent`] is the default (`motif detect --regroup none` gives the thesis's output).
@@ -224,6 +228,7 @@ use motif_core::geometry::Aabb;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::aligned::{AlignedOptions, AlignedReport, realign};
 use crate::content::{ContentOptions, ContentReport, prune, reassign};
 use crate::grid::SpatialHash;
 use crate::instances::{Class, Instance, InstanceOptions, overlaps_any};
@@ -329,6 +334,9 @@ pub struct ExtentOptions {
     /// Step 8: instances reassigned to the class whose depth images theirs resembles, then
     /// incoherent classes and unlike instances pruned ([`crate::content`]).
     pub content: ContentOptions,
+    /// Step 9: instances reassigned again by depth images at one common scale, compared at the
+    /// best shift ([`crate::aligned`]).
+    pub aligned: AlignedOptions,
 }
 
 impl Default for ExtentOptions {
@@ -355,6 +363,7 @@ impl Default for ExtentOptions {
             fit_boxes: true,
             fit_trim: 0.002,
             content: ContentOptions::default(),
+            aligned: AlignedOptions::default(),
         }
     }
 }
@@ -382,6 +391,8 @@ pub struct ExtentReport {
     pub fitted: usize,
     /// What step 8 did ([`crate::content`]).
     pub content: ContentReport,
+    /// What step 9 did ([`crate::aligned`]).
+    pub aligned: AlignedReport,
 }
 
 impl Segments {
@@ -945,6 +956,7 @@ pub fn regroup(
     }
     report.content = reassign(&mut classes, &pre.points, &hash, eps, merge_overlap, &o.content);
     prune(&mut classes, &pre.points, &hash, eps, &o.content, &mut report.content);
+    report.aligned = realign(&mut classes, &pre.points, &hash, eps, merge_overlap, &o.aligned);
     // Stable: the co-occurrence classes keep their order among classes of equal size.
     classes.sort_by_key(|c| std::cmp::Reverse(c.instances.len()));
     (classes, report)

@@ -14,7 +14,9 @@
 //! - [`extent`]: instance extents by segmentation and classes regrouped by size (not in the
 //!   thesis);
 //! - [`content`]: instances reassigned to classes by depth images of their surroundings (not in
-//!   the thesis; the extent stage's last step);
+//!   the thesis; a step of the extent stage);
+//! - [`aligned`]: instances reassigned again by depth images at one common scale, compared at
+//!   the best shift (not in the thesis; the extent stage's last step);
 //! - [`segment_classes`]: classes of unexplained segments repeated by size (not in the thesis;
 //!   a step of the extent stage);
 //! - [`eval`]: the evaluation protocol of thesis 5.5.2 (box matching, precision, recall, F, the
@@ -26,6 +28,7 @@
 
 #![warn(missing_docs)]
 
+pub mod aligned;
 pub mod class_merge;
 pub mod content;
 pub mod cooccurrence;

@@ -109,6 +109,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         o.extent.regroup = a.regroup.into();
         o.extent.repeated_segments = a.repeated_segments.into();
         o.extent.content.enabled = !a.no_content;
+        o.extent.aligned.enabled = !a.no_aligned;
         o
     };
     super::detect::validate_options(&options(Method::EmSc, g.seed))?;
@@ -201,7 +202,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     }
     if !crate::output::json_on_stdout(&a.json.json) {
         println!(
-            "{} × {} scenes of {} points, ε = {} × diagonal, minimum support {}, peak share {}, regroup {}, repeated segments {}, content {}, τ = {}",
+            "{} × {} scenes of {} points, ε = {} × diagonal, minimum support {}, peak share {}, regroup {}, repeated segments {}, content {}, aligned {}, τ = {}",
             a.kind,
             a.scenes,
             a.points,
@@ -215,6 +216,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 RepeatedSegmentsArg::None => "off",
             },
             if a.no_content { "off" } else { "on" },
+            if a.no_aligned { "off" } else { "on" },
             eval.tau
         );
         println!(
@@ -286,7 +288,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 RepeatedSegmentsArg::Sizes => "sizes",
                 RepeatedSegmentsArg::None => "none",
             },
-            "content": !a.no_content }),
+            "content": !a.no_content, "aligned": !a.no_aligned }),
     )
 }
 

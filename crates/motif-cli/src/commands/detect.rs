@@ -94,6 +94,7 @@ pub fn options(a: &DetectArgs, g: &GlobalArgs) -> DetectOptions {
     o.extent.repeated_segments = a.repeated_segments.into();
     o.extent.fit_boxes = !a.no_box_fit;
     o.extent.content.enabled = !a.no_content;
+    o.extent.aligned.enabled = !a.no_aligned;
     o.extent.fit_trim = a.fit_trim;
     o
 }
