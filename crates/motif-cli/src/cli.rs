@@ -694,7 +694,7 @@ pub struct BenchDetectArgs {
     pub repeated_segments: RepeatedSegmentsArg,
     /// Keep the classes of the size split and merge instead of moving each instance to the class
     /// whose depth images of the surroundings its own resembles and then dropping classes and
-    /// instances whose images disagree (the extent stage's last step, motif_detect::content; not
+    /// instances whose images disagree (a step of the extent stage, motif_detect::content; not
     /// in the thesis, on by default: under strong variation window styles share their sizes but
     /// not their transoms and shutters, and clutter boxes of unlike sizes form classes whose
     /// images share nothing). No effect with `--regroup none`.
@@ -956,7 +956,7 @@ pub struct DetectArgs {
     pub repeated_segments: RepeatedSegmentsArg,
     /// Keep the classes of the size split and merge instead of moving each instance to the class
     /// whose depth images of the surroundings its own resembles and then dropping classes and
-    /// instances whose images disagree (the extent stage's last step, motif_detect::content; not
+    /// instances whose images disagree (a step of the extent stage, motif_detect::content; not
     /// in the thesis, on by default: under strong variation window styles share their sizes but
     /// not their transoms and shutters, and clutter boxes of unlike sizes form classes whose
     /// images share nothing). No effect with `--regroup none`.

@@ -395,6 +395,15 @@ pub struct ContentReport {
     pub outliers: usize,
 }
 
+/// Per class: its thin axis ([`thinnest`]), or `None` when its blocks turn freely (their depth
+/// images mean nothing) or it has no instance.
+pub(crate) fn thin_axes(classes: &[Class]) -> Vec<Option<usize>> {
+    classes
+        .iter()
+        .map(|c| (!c.instances.is_empty() && !turns_freely(&c.instances)).then(|| thinnest(&c.instances)))
+        .collect()
+}
+
 /// Reassigns the instances of `classes` by content (module documentation). `points` are the
 /// resampled points, indexed by `hash`; `eps` is ε; `merge_overlap` is
 /// [`crate::instances::InstanceOptions::merge_overlap`]. Classes come back in their order,
@@ -411,11 +420,7 @@ pub fn reassign(
     if !o.enabled || classes.len() < 2 {
         return report;
     }
-    // Per class: its thin axis, or None when its blocks turn freely.
-    let thin: Vec<Option<usize>> = classes
-        .iter()
-        .map(|c| (!c.instances.is_empty() && !turns_freely(&c.instances)).then(|| thinnest(&c.instances)))
-        .collect();
+    let thin = thin_axes(classes);
     // (class, instance) of every instance that takes part, and its descriptor.
     let items: Vec<(usize, usize)> = classes
         .iter()
@@ -657,7 +662,7 @@ pub(crate) mod tests {
 
     /// A wall in z = 0 sampled every [`H`] as a height field: the `windows` recessed 0.2 m,
     /// their bars 0.1 m behind the wall, cornices and sills 0.15 m in front of it.
-    pub(crate) fn wall(windows: &[Window]) -> Vec<Point3> {
+    fn wall(windows: &[Window]) -> Vec<Point3> {
         occluded_wall(windows, &[])
     }
 
@@ -703,21 +708,42 @@ pub(crate) mod tests {
     }
 
     /// The windows of styles `two_bars` ([`windows`]), their wall and its spatial hash.
-    pub(crate) fn scene(two_bars: [bool; 8]) -> (Vec<Window>, Vec<Point3>, SpatialHash) {
-        let ws = windows(two_bars);
-        let pts = wall(&ws);
-        let hash = SpatialHash::new(&pts, 8.0 * H);
-        (ws, pts, hash)
+    fn scene(two_bars: [bool; 8]) -> (Vec<Window>, Vec<Point3>, SpatialHash) {
+        styled_scene(two_bars, |_| (1.0, 1.0), 0.15)
     }
 
     /// Eight windows 3 m apart, sizes varied by up to 15% per axis; styles as `two_bars`.
     fn windows(two_bars: [bool; 8]) -> Vec<Window> {
+        styled_windows(two_bars, |_| (1.0, 1.0), 0.15)
+    }
+
+    /// Eight windows 3 m apart, styles as `two_bars`, window k of style s scaled by `size(s)`
+    /// (x, y) times a variation of up to `amplitude` per axis.
+    pub(crate) fn styled_windows(
+        two_bars: [bool; 8],
+        size: impl Fn(bool) -> (f64, f64),
+        amplitude: f64,
+    ) -> Vec<Window> {
         (0..8)
             .map(|k| {
                 let t = k as f64;
-                (1.5 + 3.0 * t, 1.0 + 0.15 * (1.3 * t).sin(), 1.0 + 0.15 * (2.1 * t + 0.5).cos(), two_bars[k])
+                let (sx, sy) = size(two_bars[k]);
+                let (vx, vy) = (1.0 + amplitude * (1.3 * t).sin(), 1.0 + amplitude * (2.1 * t + 0.5).cos());
+                (1.5 + 3.0 * t, sx * vx, sy * vy, two_bars[k])
             })
             .collect()
+    }
+
+    /// [`styled_windows`], their wall and its spatial hash.
+    pub(crate) fn styled_scene(
+        two_bars: [bool; 8],
+        size: impl Fn(bool) -> (f64, f64),
+        amplitude: f64,
+    ) -> (Vec<Window>, Vec<Point3>, SpatialHash) {
+        let ws = styled_windows(two_bars, size, amplitude);
+        let pts = wall(&ws);
+        let hash = SpatialHash::new(&pts, 8.0 * H);
+        (ws, pts, hash)
     }
 
     pub(crate) fn class_of(ws: &[Window], members: &[usize], word: usize, turn: f64) -> Class {

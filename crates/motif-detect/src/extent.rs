@@ -76,7 +76,8 @@
 //!    Then, by the same depth images, classes that hold no one kind of block (clutter boxes of
 //!    unlike sizes) are dropped, and so are instances unlike the rest of their class.
 //! 9. **Aligned content.** Each instance moves again, to the class whose members' depth images,
-//!    drawn at one scale common to the scene and compared at the best of a few relative shifts,
+//!    drawn at one scale common to the instances of a thin axis and compared at the best of a
+//!    few relative shifts,
 //!    its own resembles most ([`crate::aligned`]): a box fitted to half a window, or one that
 //!    left a window's shutters out, still pictures the window under it.
 //!

@@ -135,6 +135,8 @@ impl DetectOptions {
             ("extent.segment_distance", self.extent.segment_distance),
             ("extent.shape_tolerance", self.extent.shape_tolerance),
             ("extent.content.window", self.extent.content.window),
+            ("extent.aligned.cells_per_block", self.extent.aligned.cells_per_block),
+            ("extent.aligned.slab", self.extent.aligned.slab),
         ] {
             if !(v.is_finite() && v > 0.0) {
                 return bad(name, format!("must be positive and finite, got {v}"));
@@ -195,6 +197,30 @@ impl DetectOptions {
         if !(self.extent.content.size_weight.is_finite() && self.extent.content.size_weight >= 0.0) {
             let v = self.extent.content.size_weight;
             return bad("extent.content.size_weight", format!("must be finite and ≥ 0, got {v}"));
+        }
+        let al = &self.extent.aligned;
+        if !(0.0..1.0).contains(&al.margin) {
+            return bad(
+                "extent.aligned.margin",
+                format!("must be at least 0 and below 1, got {}", al.margin),
+            );
+        }
+        if al.flatness.is_nan() || al.flatness <= 0.0 {
+            let v = al.flatness;
+            return bad(
+                "extent.aligned.flatness",
+                format!("must be positive (infinity: every instance), got {v}"),
+            );
+        }
+        if al.core_cells == 0 || al.core_cells > al.image_cells || (al.image_cells - al.core_cells) % 2 == 1 {
+            let (n, c) = (al.image_cells, al.core_cells);
+            return bad(
+                "extent.aligned.core_cells",
+                format!(
+                    "must be at least 1 and at most extent.aligned.image_cells ({n}), with an even difference \
+                     (the core is centred), got {c}"
+                ),
+            );
         }
         if !(0.0..1.0).contains(&self.extent.content.margin) {
             let v = self.extent.content.margin;

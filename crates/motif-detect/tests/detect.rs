@@ -216,7 +216,7 @@ fn absurd_epsilon_is_refused_unless_forced() {
 #[test]
 fn options_out_of_range_are_refused_by_name() {
     let (cloud, _) = facade(2_000);
-    let cases: [(&str, fn(&mut DetectOptions)); 18] = [
+    let cases: [(&str, fn(&mut DetectOptions)); 23] = [
         ("em.peak_share", |o| o.em.peak_share = 1.5),
         ("extent.segment_distance", |o| o.extent.segment_distance = -0.2),
         ("extent.segment_contrast", |o| o.extent.segment_contrast = f64::INFINITY),
@@ -235,6 +235,12 @@ fn options_out_of_range_are_refused_by_name() {
         ("extent.shape_length", |o| o.extent.shape_length = 0.0),
         ("extent.shape_similarity", |o| o.extent.shape_similarity = -0.1),
         ("extent.shape_tolerance", |o| o.extent.shape_tolerance = f64::INFINITY),
+        ("extent.aligned.cells_per_block", |o| o.extent.aligned.cells_per_block = 0.0),
+        ("extent.aligned.slab", |o| o.extent.aligned.slab = f64::NAN),
+        ("extent.aligned.margin", |o| o.extent.aligned.margin = -0.1),
+        ("extent.aligned.flatness", |o| o.extent.aligned.flatness = 0.0),
+        // An odd difference would put the core off centre (a mirror of the input would differ).
+        ("extent.aligned.core_cells", |o| o.extent.aligned.core_cells = 24),
     ];
     for (name, break_it) in cases {
         let mut o = options();
