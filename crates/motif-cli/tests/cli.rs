@@ -1201,9 +1201,10 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
         assert!(o.status.success(), "{}", stderr(&o));
     }
     // `--no-box-fit` keeps the grown boxes: the same classes and instances, each box holding the
-    // fitted one. Both without the reassignment by content (`--no-content`), which compares
-    // the boxes' surroundings and so may move instances differently for grown boxes.
-    let base = ["detect", "s.ply", "--epsilon", "0.002", "--no-content"];
+    // fitted one. Both without the reassignments by content (`--no-content`, `--no-aligned`),
+    // which compare the boxes' surroundings and so may move instances differently for grown
+    // boxes.
+    let base = ["detect", "s.ply", "--epsilon", "0.002", "--no-content", "--no-aligned"];
     for (out, extra) in [("r6", Some("--no-box-fit")), ("r8", None)] {
         let (res, rep) = (format!("{out}.json"), format!("{out}.rep.json"));
         let mut args = base.to_vec();
@@ -1222,6 +1223,10 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
     assert_eq!(rep["options"]["extent"]["content"]["enabled"], false);
     assert_eq!(rep["report"]["extent"]["content"]["described"], 0);
     assert!(read("r2.rep.json")["report"]["extent"]["content"]["described"].as_u64().unwrap() > 0);
+    // The same for `--no-aligned`.
+    assert_eq!(rep["options"]["extent"]["aligned"]["enabled"], false);
+    assert_eq!(rep["report"]["extent"]["aligned"]["described"], 0);
+    assert!(read("r2.rep.json")["report"]["extent"]["aligned"]["described"].as_u64().unwrap() > 0);
     for key in ["incoherent_classes", "outliers"] {
         assert!(read("r2.rep.json")["report"]["extent"]["content"][key].is_u64(), "{key}");
     }
