@@ -208,6 +208,25 @@ impl From<RegroupArg> for motif_detect::extent::Regroup {
     }
 }
 
+/// How the extent stage's last step groups instances (motif_detect::aligned::Grouping).
+#[derive(Debug, Clone, Copy, ValueEnum, Default, PartialEq)]
+pub enum AlignedGroupingArg {
+    /// Communities of the graph of all instances weighted by image distance.
+    #[default]
+    Communities,
+    /// Each instance moves to the class whose members it resembles most.
+    Reassign,
+}
+
+impl From<AlignedGroupingArg> for motif_detect::aligned::Grouping {
+    fn from(a: AlignedGroupingArg) -> Self {
+        match a {
+            AlignedGroupingArg::Communities => motif_detect::aligned::Grouping::Communities,
+            AlignedGroupingArg::Reassign => motif_detect::aligned::Grouping::Reassign,
+        }
+    }
+}
+
 /// A step of `motif detect`'s extent stage (motif_detect::segment_classes).
 #[derive(Debug, Clone, Copy, ValueEnum, Default, PartialEq)]
 pub enum RepeatedSegmentsArg {
@@ -700,13 +719,19 @@ pub struct BenchDetectArgs {
     /// images share nothing). No effect with `--regroup none`.
     #[arg(long)]
     pub no_content: bool,
-    /// Keep the classes of the content step instead of moving each instance again to the class
-    /// whose members' depth images, drawn at one common scale and compared at the best of a few
-    /// shifts, its own resembles most (the extent stage's last step, motif_detect::aligned; not
-    /// in the thesis, on by default: a box fitted to half a window, or without its shutters,
-    /// still finds the window under it). No effect with `--regroup none`.
+    /// Keep the classes of the content step instead of grouping the instances again by their
+    /// depth images, drawn at one common scale and compared at the best of a few shifts (the
+    /// extent stage's last step, motif_detect::aligned; not in the thesis, on by default: a box
+    /// fitted to half a window, or without its shutters, still finds the window under it). No
+    /// effect with `--regroup none`.
     #[arg(long)]
     pub no_aligned: bool,
+    /// How that last step groups the instances: `communities` forms the classes again as the
+    /// communities of the graph of all instances weighted by image distance (joins one style
+    /// found as several classes, splits classes of two); `reassign` keeps the classes and moves
+    /// each instance to the one whose members it resembles most.
+    #[arg(long, value_enum, default_value_t = AlignedGroupingArg::Communities)]
+    pub aligned_grouping: AlignedGroupingArg,
     /// Also print, per level and annotated class, how many instances EM + SC located (some
     /// detected box matches) and how many the recall credited, summed over the scenes, and the
     /// R and F that no grouping or pruning of its boxes can exceed (the JSON report always has
@@ -962,13 +987,19 @@ pub struct DetectArgs {
     /// images share nothing). No effect with `--regroup none`.
     #[arg(long)]
     pub no_content: bool,
-    /// Keep the classes of the content step instead of moving each instance again to the class
-    /// whose members' depth images, drawn at one common scale and compared at the best of a few
-    /// shifts, its own resembles most (the extent stage's last step, motif_detect::aligned; not
-    /// in the thesis, on by default: a box fitted to half a window, or without its shutters,
-    /// still finds the window under it). No effect with `--regroup none`.
+    /// Keep the classes of the content step instead of grouping the instances again by their
+    /// depth images, drawn at one common scale and compared at the best of a few shifts (the
+    /// extent stage's last step, motif_detect::aligned; not in the thesis, on by default: a box
+    /// fitted to half a window, or without its shutters, still finds the window under it). No
+    /// effect with `--regroup none`.
     #[arg(long)]
     pub no_aligned: bool,
+    /// How that last step groups the instances: `communities` forms the classes again as the
+    /// communities of the graph of all instances weighted by image distance (joins one style
+    /// found as several classes, splits classes of two); `reassign` keeps the classes and moves
+    /// each instance to the one whose members it resembles most.
+    #[arg(long, value_enum, default_value_t = AlignedGroupingArg::Communities)]
+    pub aligned_grouping: AlignedGroupingArg,
     /// Keep the extent stage's boxes as grown instead of fitting each to the points it holds
     /// (a step of the stage, on by default: boxes padded around creases and grown to segments
     /// reach past the block; fitted, they overlap the true blocks more, F at τ = 0.5 rose from

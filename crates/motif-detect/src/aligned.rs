@@ -122,6 +122,31 @@ pub struct AlignedOptions {
     /// Default 0.6 (the prototype's choice; the facades' windows measure 0.15–0.3, a window
     /// grown with its balcony 0.7–1.0).
     pub flatness: f64,
+    /// How the pictured instances are grouped once their distances are known (module
+    /// documentation). Default [`Grouping::Communities`].
+    pub grouping: Grouping,
+    /// For [`Grouping::Communities`]: an instance's distance scale is its distance to its
+    /// `scale_rank`-th nearest other instance (of its thin axis, not on its block). 3: the
+    /// local scale of self-tuning spectral clustering (Zelnik-Manor and Perona 2004, who use
+    /// the 7th neighbour on point sets of hundreds; the classes here have 2–20 members).
+    /// Default 3.
+    pub scale_rank: usize,
+    /// For [`Grouping::Communities`]: the resolution γ of the modularity
+    /// ([`crate::communities`]). Default 1 (plain modularity).
+    pub resolution: f64,
+}
+
+/// How [`realign`] groups the instances it pictures.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Grouping {
+    /// Communities of the graph of all pairs, weighted by distance (module documentation):
+    /// the classes are formed again from the images alone.
+    #[default]
+    Communities,
+    /// Each instance in turn moves to the class whose members it resembles most (module
+    /// documentation): the classes are kept and corrected.
+    Reassign,
 }
 
 impl Default for AlignedOptions {
@@ -136,6 +161,9 @@ impl Default for AlignedOptions {
             margin: 0.1,
             rounds: 5,
             flatness: 0.6,
+            grouping: Grouping::Communities,
+            scale_rank: 3,
+            resolution: 1.0,
         }
     }
 }
@@ -153,6 +181,10 @@ pub struct AlignedReport {
     pub duplicates: usize,
     /// Classes left with fewer than two instances and dropped.
     pub dropped_classes: usize,
+    /// Communities found ([`Grouping::Communities`]; 0 otherwise).
+    pub communities: usize,
+    /// Classes made for communities that no class was left to host.
+    pub new_classes: usize,
 }
 
 /// One instance's image: `n × n` depths in ε and confidences.
@@ -322,8 +354,43 @@ pub fn realign(
                 .collect()
         })
         .collect();
+    let label = match o.grouping {
+        Grouping::Reassign => {
+            reassign(&items, &group, &d, &clash, &fixed_clash, classes.len(), o, &mut report)
+        }
+        Grouping::Communities => {
+            let community = communities(&group, &d, &clash, o);
+            report.communities = community.iter().max().map_or(0, |c| c + 1);
+            host(classes, &items, &community, &mut report)
+        }
+    };
+    report.moved = label.iter().zip(&items).filter(|(l, it)| **l != it.0).count();
+    if report.moved > 0 {
+        let (duplicates, dropped) = apply_labels(classes, &items, &label, merge_overlap);
+        report.duplicates = duplicates;
+        report.dropped_classes = dropped;
+    }
+    report
+}
+
+/// The reassignment of the module documentation: each item's class after it. `items` are
+/// (class, instance) pairs, `group` their thin axes, `d` their distances (`m × m`), `clash` the
+/// items on each one's block, `fixed_clash` the classes holding it through a member that takes
+/// no part.
+#[allow(clippy::too_many_arguments)]
+fn reassign(
+    items: &[(usize, usize)],
+    group: &[Option<usize>],
+    d: &[f64],
+    clash: &[Vec<usize>],
+    fixed_clash: &[Vec<usize>],
+    class_count: usize,
+    o: &AlignedOptions,
+    report: &mut AlignedReport,
+) -> Vec<usize> {
+    let m = items.len();
     let mut label: Vec<usize> = items.iter().map(|it| it.0).collect();
-    let mut per_class: Vec<Vec<f64>> = vec![Vec::new(); classes.len()];
+    let mut per_class: Vec<Vec<f64>> = vec![Vec::new(); class_count];
     for _ in 0..o.rounds {
         report.rounds += 1;
         let mut moved = false;
@@ -360,13 +427,80 @@ pub fn realign(
             break;
         }
     }
-    report.moved = label.iter().zip(&items).filter(|(l, it)| **l != it.0).count();
-    if report.moved > 0 {
-        let (duplicates, dropped) = apply_labels(classes, &items, &label, merge_overlap);
-        report.duplicates = duplicates;
-        report.dropped_classes = dropped;
+    label
+}
+
+/// Communities of the pictured instances (module documentation), per item; items of
+/// different thin axes, or with no finite distance, never share one.
+fn communities(group: &[Option<usize>], d: &[f64], clash: &[Vec<usize>], o: &AlignedOptions) -> Vec<usize> {
+    let m = group.len();
+    let linked = |a: usize, b: usize| {
+        a != b && group[a] == group[b] && d[a * m + b].is_finite() && !clash[a].contains(&b)
+    };
+    // Each instance's scale: its distance to its scale_rank-th nearest linked instance (the
+    // farthest, when it has fewer).
+    let scale: Vec<Option<f64>> = (0..m)
+        .map(|a| {
+            let mut ds: Vec<f64> = (0..m).filter(|&b| linked(a, b)).map(|b| d[a * m + b]).collect();
+            ds.sort_by(f64::total_cmp);
+            (!ds.is_empty()).then(|| ds[o.scale_rank.clamp(1, ds.len()) - 1])
+        })
+        .collect();
+    let mut w = vec![0.0; m * m];
+    for a in 0..m {
+        for b in (a + 1..m).filter(|&b| linked(a, b)) {
+            let (Some(sa), Some(sb)) = (scale[a], scale[b]) else { continue };
+            let v = d[a * m + b];
+            let weight = if sa * sb > 0.0 {
+                (-v * v / (sa * sb)).exp()
+            } else if v == 0.0 {
+                1.0
+            } else {
+                0.0
+            };
+            w[a * m + b] = weight;
+            w[b * m + a] = weight;
+        }
     }
-    report
+    crate::communities::louvain(&w, m, o.resolution)
+}
+
+/// Classes for the communities: each class hosts at most one community and each community at
+/// most one class, the pairs sharing the most instances first (ties: lower community, then
+/// lower class); a community left without a host gets a new class, a copy of the class most of
+/// its instances came from (its words and cluster; ties: the lower). Returns each item's class
+/// (new classes are appended to `classes` empty, to be filled by [`apply_labels`]).
+fn host(
+    classes: &mut Vec<Class>,
+    items: &[(usize, usize)],
+    community: &[usize],
+    report: &mut AlignedReport,
+) -> Vec<usize> {
+    let count = community.iter().max().map_or(0, |c| c + 1);
+    let mut shared = std::collections::BTreeMap::<(usize, usize), usize>::new();
+    for (&(ci, _), &c) in items.iter().zip(community) {
+        *shared.entry((c, ci)).or_default() += 1;
+    }
+    let mut pairs: Vec<((usize, usize), usize)> = shared.into_iter().collect();
+    pairs.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
+    let mut class_of: Vec<Option<usize>> = vec![None; count];
+    let mut taken = vec![false; classes.len()];
+    for &((c, ci), _) in &pairs {
+        if class_of[c].is_none() && !taken[ci] {
+            class_of[c] = Some(ci);
+            taken[ci] = true;
+        }
+    }
+    for (c, slot) in class_of.iter_mut().enumerate() {
+        if slot.is_none() {
+            // The first pair of c in `pairs` is its largest share.
+            let &((_, ci), _) = pairs.iter().find(|p| p.0.0 == c).expect("every community has an item");
+            classes.push(Class { instances: Vec::new(), ..classes[ci].clone() });
+            *slot = Some(classes.len() - 1);
+            report.new_classes += 1;
+        }
+    }
+    community.iter().map(|&c| class_of[c].expect("every community has a class")).collect()
 }
 
 #[cfg(test)]
@@ -461,11 +595,78 @@ mod tests {
         assert_eq!(deep[1].instances.len(), 5);
     }
 
+    const BOTH: [Grouping; 2] = [Grouping::Communities, Grouping::Reassign];
+
+    /// Each class's members (window indices), sorted, classes in order.
+    fn members(classes: &[Class]) -> Vec<Vec<usize>> {
+        let mut m: Vec<Vec<usize>> =
+            classes.iter().map(|c| c.instances.iter().map(|i| i.centre).collect()).collect();
+        m.iter_mut().for_each(|m| m.sort_unstable());
+        m
+    }
+
     #[test]
     fn well_grouped_classes_stay() {
         let (ws, pts, hash) = scene([false, false, false, false, true, true, true, true]);
-        let mut classes = vec![class_of(&ws, &[0, 1, 2, 3], 0, 0.0), class_of(&ws, &[4, 5, 6, 7], 1, 0.0)];
+        for grouping in BOTH {
+            let mut classes =
+                vec![class_of(&ws, &[0, 1, 2, 3], 0, 0.0), class_of(&ws, &[4, 5, 6, 7], 1, 0.0)];
+            let o = AlignedOptions { grouping, ..Default::default() };
+            let r = realign(&mut classes, &pts, &hash, H, 0.5, &o);
+            let expected = match grouping {
+                Grouping::Communities => (8, 0, 0, 2, 0),
+                Grouping::Reassign => (8, 0, 1, 0, 0),
+            };
+            assert_eq!((r.described, r.moved, r.rounds, r.communities, r.new_classes), expected, "{r:?}");
+            assert_eq!(members(&classes), vec![vec![0, 1, 2, 3], vec![4, 5, 6, 7]]);
+        }
+    }
+
+    #[test]
+    fn communities_join_a_split_style_and_split_a_mixed_class() {
+        // One-transom windows 0–3 and two-transom windows 4–7, in three classes: {0, 1}, the
+        // mix {2, 3, 4} and {5, 6, 7}. By communities of the images the classes become the two
+        // styles, each hosted by a class it shares most with (a tie between {0, 1} and the mix
+        // goes to the lower), and the emptied mix is dropped.
+        let (ws, pts, hash) = scene([false, false, false, false, true, true, true, true]);
+        let three = || {
+            vec![
+                class_of(&ws, &[0, 1], 0, 0.0),
+                class_of(&ws, &[2, 3, 4], 1, 0.0),
+                class_of(&ws, &[5, 6, 7], 2, 0.0),
+            ]
+        };
+        let mut classes = three();
         let r = realign(&mut classes, &pts, &hash, H, 0.5, &AlignedOptions::default());
-        assert_eq!((r.described, r.moved, r.rounds), (8, 0, 1), "{r:?}");
+        assert_eq!((r.communities, r.moved, r.new_classes, r.dropped_classes), (2, 3, 0, 1), "{r:?}");
+        assert_eq!(members(&classes), vec![vec![0, 1, 2, 3], vec![4, 5, 6, 7]]);
+        assert_eq!(classes.iter().map(|c| c.words[0]).collect::<Vec<_>>(), [0, 2]);
+        // Reassignment keeps a class per style found and cannot join {0, 1} with {2, 3}: the
+        // styles stay split over two classes.
+        let mut kept = three();
+        let o = AlignedOptions { grouping: Grouping::Reassign, ..Default::default() };
+        realign(&mut kept, &pts, &hash, H, 0.5, &o);
+        assert!(members(&kept).len() > 2, "{:?}", members(&kept));
+    }
+
+    #[test]
+    fn a_class_of_two_styles_is_split_into_a_new_class() {
+        let (ws, pts, hash) = scene([false, true, false, true, false, true, false, true]);
+        let mut classes = vec![class_of(&ws, &[0, 1, 2, 3, 4, 5, 6, 7], 4, 0.0)];
+        // A second class far away (nothing to picture there) keeps realign from returning early;
+        // it takes no part and stays as it is.
+        let mut far = class_of(&ws, &[0, 2], 9, 0.0);
+        far.instances.iter_mut().for_each(|i| {
+            i.aabb.min[0] += 100.0;
+            i.aabb.max[0] += 100.0;
+        });
+        classes.push(far);
+        let r = realign(&mut classes, &pts, &hash, H, 0.5, &AlignedOptions::default());
+        assert_eq!((r.described, r.communities, r.new_classes, r.moved), (8, 2, 1, 4), "{r:?}");
+        assert_eq!(classes.len(), 3);
+        let m = members(&classes);
+        assert!(m.contains(&vec![0, 2, 4, 6]) && m.contains(&vec![1, 3, 5, 7]), "{m:?}");
+        // The new class copies the words and cluster of the class its members came from.
+        assert!(classes.iter().filter(|c| c.words == [4] && c.cluster == 4).count() == 2);
     }
 }

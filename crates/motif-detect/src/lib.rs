@@ -30,6 +30,7 @@
 
 pub mod aligned;
 pub mod class_merge;
+pub mod communities;
 pub mod content;
 pub mod cooccurrence;
 pub mod detection;

@@ -212,6 +212,13 @@ impl DetectOptions {
                 format!("must be positive (infinity: every instance), got {v}"),
             );
         }
+        if al.scale_rank == 0 {
+            return bad("extent.aligned.scale_rank", "must be at least 1, got 0".to_string());
+        }
+        if !(al.resolution.is_finite() && al.resolution > 0.0) {
+            let v = al.resolution;
+            return bad("extent.aligned.resolution", format!("must be finite and positive, got {v}"));
+        }
         if al.core_cells == 0 || al.core_cells > al.image_cells || (al.image_cells - al.core_cells) % 2 == 1 {
             let (n, c) = (al.image_cells, al.core_cells);
             return bad(

@@ -216,7 +216,7 @@ fn absurd_epsilon_is_refused_unless_forced() {
 #[test]
 fn options_out_of_range_are_refused_by_name() {
     let (cloud, _) = facade(2_000);
-    let cases: [(&str, fn(&mut DetectOptions)); 23] = [
+    let cases: [(&str, fn(&mut DetectOptions)); 25] = [
         ("em.peak_share", |o| o.em.peak_share = 1.5),
         ("extent.segment_distance", |o| o.extent.segment_distance = -0.2),
         ("extent.segment_contrast", |o| o.extent.segment_contrast = f64::INFINITY),
@@ -239,6 +239,8 @@ fn options_out_of_range_are_refused_by_name() {
         ("extent.aligned.slab", |o| o.extent.aligned.slab = f64::NAN),
         ("extent.aligned.margin", |o| o.extent.aligned.margin = -0.1),
         ("extent.aligned.flatness", |o| o.extent.aligned.flatness = 0.0),
+        ("extent.aligned.scale_rank", |o| o.extent.aligned.scale_rank = 0),
+        ("extent.aligned.resolution", |o| o.extent.aligned.resolution = -1.0),
         // An odd difference would put the core off centre (a mirror of the input would differ).
         ("extent.aligned.core_cells", |o| o.extent.aligned.core_cells = 24),
     ];

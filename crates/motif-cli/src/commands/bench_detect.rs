@@ -20,7 +20,7 @@ use motif_detect::{
 };
 use serde::Serialize;
 
-use crate::cli::{BenchDetectArgs, GlobalArgs, RegroupArg, RepeatedSegmentsArg};
+use crate::cli::{AlignedGroupingArg, BenchDetectArgs, GlobalArgs, RegroupArg, RepeatedSegmentsArg};
 use crate::output::{bad_input, check_outputs, maybe_json};
 use crate::progress::Bar;
 
@@ -110,6 +110,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         o.extent.repeated_segments = a.repeated_segments.into();
         o.extent.content.enabled = !a.no_content;
         o.extent.aligned.enabled = !a.no_aligned;
+        o.extent.aligned.grouping = a.aligned_grouping.into();
         o
     };
     super::detect::validate_options(&options(Method::EmSc, g.seed))?;
@@ -216,7 +217,11 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 RepeatedSegmentsArg::None => "off",
             },
             if a.no_content { "off" } else { "on" },
-            if a.no_aligned { "off" } else { "on" },
+            match (a.no_aligned, a.aligned_grouping) {
+                (true, _) => "off",
+                (false, AlignedGroupingArg::Communities) => "by communities",
+                (false, AlignedGroupingArg::Reassign) => "by reassignment",
+            },
             eval.tau
         );
         println!(
@@ -288,7 +293,8 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 RepeatedSegmentsArg::Sizes => "sizes",
                 RepeatedSegmentsArg::None => "none",
             },
-            "content": !a.no_content, "aligned": !a.no_aligned }),
+            "content": !a.no_content, "aligned": !a.no_aligned,
+            "aligned_grouping": if a.aligned_grouping == AlignedGroupingArg::Communities { "communities" } else { "reassign" } }),
     )
 }
 
