@@ -726,10 +726,11 @@ pub struct BenchDetectArgs {
     /// effect with `--regroup none`.
     #[arg(long)]
     pub no_aligned: bool,
-    /// How that last step groups the instances: `communities` forms the classes again as the
-    /// communities of the graph of all instances weighted by image distance (joins one style
-    /// found as several classes, splits classes of two); `reassign` keeps the classes and moves
-    /// each instance to the one whose members it resembles most.
+    /// How that last step groups the instances it pictures (those of each thin axis whose box
+    /// is flat): `communities` forms the classes again as the communities of the graph of those
+    /// instances weighted by image distance (joins one style found as several classes, splits a
+    /// class of two); `reassign` keeps the classes and moves each instance to the one whose
+    /// members it resembles most. No effect with `--no-aligned` or `--regroup none`.
     #[arg(long, value_enum, default_value_t = AlignedGroupingArg::Communities)]
     pub aligned_grouping: AlignedGroupingArg,
     /// Also print, per level and annotated class, how many instances EM + SC located (some
@@ -994,10 +995,11 @@ pub struct DetectArgs {
     /// effect with `--regroup none`.
     #[arg(long)]
     pub no_aligned: bool,
-    /// How that last step groups the instances: `communities` forms the classes again as the
-    /// communities of the graph of all instances weighted by image distance (joins one style
-    /// found as several classes, splits classes of two); `reassign` keeps the classes and moves
-    /// each instance to the one whose members it resembles most.
+    /// How that last step groups the instances it pictures (those of each thin axis whose box
+    /// is flat): `communities` forms the classes again as the communities of the graph of those
+    /// instances weighted by image distance (joins one style found as several classes, splits a
+    /// class of two); `reassign` keeps the classes and moves each instance to the one whose
+    /// members it resembles most. No effect with `--no-aligned` or `--regroup none`.
     #[arg(long, value_enum, default_value_t = AlignedGroupingArg::Communities)]
     pub aligned_grouping: AlignedGroupingArg,
     /// Keep the extent stage's boxes as grown instead of fitting each to the points it holds

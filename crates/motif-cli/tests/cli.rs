@@ -1227,6 +1227,33 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
     assert_eq!(rep["options"]["extent"]["aligned"]["enabled"], false);
     assert_eq!(rep["report"]["extent"]["aligned"]["described"], 0);
     assert!(read("r2.rep.json")["report"]["extent"]["aligned"]["described"].as_u64().unwrap() > 0);
+    // By default the aligned step groups by communities; `--aligned-grouping reassign` corrects
+    // the classes instead, in rounds.
+    let def = &read("r2.rep.json");
+    assert_eq!(def["options"]["extent"]["aligned"]["grouping"], "communities");
+    assert!(def["report"]["extent"]["aligned"]["communities"].as_u64().unwrap() > 0);
+    assert_eq!(def["report"]["extent"]["aligned"]["rounds"], 0);
+    let args = [
+        "detect",
+        "s.ply",
+        "--epsilon",
+        "0.002",
+        "--aligned-grouping",
+        "reassign",
+        "-o",
+        "r9.json",
+        "--json",
+        "r9.rep.json",
+    ];
+    let o = motif(&args, dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let re = &read("r9.rep.json");
+    assert_eq!(re["options"]["extent"]["aligned"]["grouping"], "reassign");
+    assert_eq!(re["report"]["extent"]["aligned"]["communities"], 0);
+    assert!(re["report"]["extent"]["aligned"]["rounds"].as_u64().unwrap() > 0);
+    let o = motif(&["detect", "s.ply", "--aligned-grouping", "sideways", "-o", "r10.json"], dir.path());
+    assert!(!o.status.success() && stderr(&o).contains("sideways"), "{}", stderr(&o));
+    assert!(!dir.path().join("r10.json").exists());
     for key in ["incoherent_classes", "outliers"] {
         assert!(read("r2.rep.json")["report"]["extent"]["content"][key].is_u64(), "{key}");
     }
