@@ -138,6 +138,12 @@
 //! 0.821 → 0.863), so EM + SC's lead on medium facades is +0.077 ±0.026. The demo's detection
 //! (a medium facade of 200k points) went from F 0.858 to 0.958 (P 0.920, R 1.000).
 //!
+//! Seeds 13–24, used for nothing before (`motif bench detect ... --seed 13 --aligned-grouping
+//! reassign|communities`), the same comparison: facades 0.964 → 0.970 (+0.007 ±0.008) / 0.898
+//! → 0.924 (+0.026 ±0.008) / 0.756 → 0.857 (+0.102 ±0.020); streets 0.940 → 0.950 (+0.010
+//! ±0.007) / 0.860 → 0.869 (+0.009 ±0.015) / 0.682 → 0.698 (+0.016 ±0.011). EM + SC's lead on
+//! medium facades there: +0.065 ±0.037 with reassignment, +0.056 ±0.039 with communities.
+//!
 //! ## Reassignment
 //! On the benchmark (`motif bench detect --kind scene-facade|scene-street --scenes 12 --no-icp`,
 //! seeds 1–12), EM + SC F without → with the step, paired over the scenes: facades 0.935 →
