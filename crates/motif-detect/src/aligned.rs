@@ -416,33 +416,33 @@ pub fn realign(
                 .collect()
         })
         .collect();
-    // Classes that hold an instance's block through a member that takes no part (a deep box):
-    // such members never move, so this is fixed.
-    let mut taking_part: Vec<Vec<bool>> = classes.iter().map(|c| vec![false; c.instances.len()]).collect();
-    for &(ci, k) in &items {
-        taking_part[ci][k] = true;
-    }
-    let fixed_clash: Vec<Vec<usize>> = (0..m)
-        .map(|a| {
-            (0..classes.len())
-                .filter(|&ci| {
-                    classes[ci].instances.iter().zip(&taking_part[ci]).any(|(q, &part)| {
-                        !part && overlaps_any(inst(a), std::slice::from_ref(q), merge_overlap)
-                    })
-                })
-                .collect()
-        })
-        .collect();
-    let (items, label) = match o.grouping {
+    let label = match o.grouping {
         Grouping::Reassign => {
-            let label = reassign(&items, &group, &d, &clash, &fixed_clash, classes.len(), o, &mut report);
-            (items, label)
+            // Classes that hold an instance's block through a member that takes no part (a deep
+            // box): such members never move, so this is fixed. (Communities form the classes
+            // afresh, and a repeat of a block its class holds is dropped when applied.)
+            let mut taking_part: Vec<Vec<bool>> =
+                classes.iter().map(|c| vec![false; c.instances.len()]).collect();
+            for &(ci, k) in &items {
+                taking_part[ci][k] = true;
+            }
+            let fixed_clash: Vec<Vec<usize>> = (0..m)
+                .map(|a| {
+                    (0..classes.len())
+                        .filter(|&ci| {
+                            classes[ci].instances.iter().zip(&taking_part[ci]).any(|(q, &part)| {
+                                !part && overlaps_any(inst(a), std::slice::from_ref(q), merge_overlap)
+                            })
+                        })
+                        .collect()
+                })
+                .collect();
+            reassign(&items, &group, &d, &clash, &fixed_clash, classes.len(), o, &mut report)
         }
         Grouping::Communities => {
             let community = communities(&group, &d, &clash, o);
             report.communities = community.iter().max().map_or(0, |c| c + 1);
-            let label = host(classes, &items, &community, &mut report);
-            (items, label)
+            host(classes, &items, &community, &mut report)
         }
     };
     report.moved = label.iter().zip(&items).filter(|(l, it)| **l != it.0).count();
