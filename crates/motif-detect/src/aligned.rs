@@ -248,8 +248,8 @@ impl Default for AlignedOptions {
 pub struct AlignedReport {
     /// Instances given an image.
     pub described: usize,
-    /// Instances that changed class (with [`Grouping::Communities`], those that take no part and
-    /// followed their class's members too, and those then dropped).
+    /// Pictured instances that changed class (including those then dropped as repeats or with a
+    /// class of one).
     pub moved: usize,
     /// Rounds run ([`Grouping::Reassign`]; 0 otherwise).
     pub rounds: usize,
