@@ -142,10 +142,14 @@ fn run_scene(kind: SceneKind, output: &Path, a: &ExampleArgs, g: &GlobalArgs) ->
     if let Some(gt) = &a.gt {
         write_json(gt, &scene.ground_truth)?;
     }
+    let hidden = match scene.stats.hidden_instances {
+        0 => String::new(),
+        h => format!(" ({h} more hidden from the scanners, not annotated)"),
+    };
     super::note(
         g,
         format!(
-            "wrote {} ({}, {}: {n} points, {classes} classes, {instances} instances, noise {:.1} mm, {:.0}% of the surface visible; {seconds:.2} s){}",
+            "wrote {} ({}, {}: {n} points, {classes} classes, {instances} instances{hidden}, noise {:.1} mm, {:.0}% of the surface visible; {seconds:.2} s){}",
             output.display(),
             kind.name(),
             difficulty.name(),

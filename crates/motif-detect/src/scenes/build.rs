@@ -60,6 +60,8 @@ struct Seen {
     kept: usize,
     instance_drawn: usize,
     instance_kept: usize,
+    /// Per instance: samples drawn on it, and of those, samples a scanner saw.
+    per_instance: Vec<(usize, usize)>,
 }
 
 /// Draws `n` surface samples that some scanner sees (all of them for complete sampling).
@@ -106,6 +108,10 @@ fn visible_samples(
             let inst = matches!(owner, Owner::Instance(_));
             seen.drawn += 1;
             seen.instance_drawn += inst as usize;
+            if let Owner::Instance(j) = owner {
+                seen.per_instance[j as usize].0 += 1;
+                seen.per_instance[j as usize].1 += k.is_some() as usize;
+            }
             if let Some(nrm) = k {
                 seen.kept += 1;
                 seen.instance_kept += inst as usize;
@@ -124,6 +130,17 @@ fn visible_samples(
     }
     Ok(out)
 }
+
+/// The share of an instance's surface the scanners must see for it to be annotated (in the
+/// ground truth): 1%. The thesis's ground truth is what people marked on the scans (5.5.1), and
+/// no one can mark a block the scan does not show. Measured as the share of the random surface
+/// samples drawn on the instance that some scanner sees (complete sampling shows every instance
+/// whole). On the hard streets of seeds 1–12 (one scanner behind parked cars) 12 of the 586
+/// instances, all bins, show less than 0.5% of their surface (0–8 points; ten show nothing),
+/// and every other instance 2% or more (47 points and up, a patch where a bin was); the
+/// threshold lies in that gap. Every instance of the hard facades of seeds 1–12 shows 22% or
+/// more.
+pub const MIN_VISIBLE_SURFACE: f64 = 0.01;
 
 /// Samples the layout into a scene.
 pub(crate) fn build(
@@ -146,7 +163,7 @@ pub(crate) fn build(
 
     let n_out = ((s.outlier_fraction * options.points as f64).round() as usize).min(options.points);
     let n_surface = options.points - n_out;
-    let mut seen = Seen::default();
+    let mut seen = Seen { per_instance: vec![(0, 0); layout.instances.len()], ..Default::default() };
     let samples = visible_samples(&sm, &layout.scanners, n_surface, options.seed, &mut seen)?;
 
     let mut positions = Vec::with_capacity(options.points);
@@ -202,7 +219,8 @@ pub(crate) fn build(
     let normals: Vec<Point3> = perm.iter().map(|&i| normals[i]).collect();
     let owner: Vec<i64> = perm.iter().map(|&i| owner[i]).collect();
 
-    // Ground truth: instance 0 of each class is the first placed.
+    // Ground truth: the instances the scanners show (MIN_VISIBLE_SURFACE); instance 0 of each
+    // class is the first of those placed.
     let n_inst = layout.instances.len();
     let mut points_of: Vec<Vec<u32>> = vec![Vec::new(); n_inst];
     for (i, &o) in owner.iter().enumerate() {
@@ -210,9 +228,15 @@ pub(crate) fn build(
             points_of[o as usize].push(i as u32);
         }
     }
+    let mut hidden_instances = 0usize;
     let mut classes: Vec<(Mat4, DetectedClass)> = Vec::new();
     let mut class_slot: Vec<Option<usize>> = vec![None; layout.templates.len()];
     for (k, inst) in layout.instances.iter().enumerate() {
+        let (drawn, kept) = seen.per_instance[k];
+        if (kept as f64) < MIN_VISIBLE_SURFACE * drawn as f64 {
+            hidden_instances += 1;
+            continue;
+        }
         let slot = match class_slot[inst.class] {
             Some(c) => c,
             None => {
@@ -258,6 +282,7 @@ pub(crate) fn build(
         clutter_points: count(-2),
         outlier_points: count(-3),
         clutter_objects: layout.clutter.len(),
+        hidden_instances,
         triangles: sm.mesh.num_triangles(),
     };
     let cloud = PointCloud { positions, normals: Some(normals), ..Default::default() };
