@@ -733,6 +733,12 @@ pub struct BenchDetectArgs {
     /// members it resembles most. No effect with `--no-aligned` or `--regroup none`.
     #[arg(long, value_enum, default_value_t = AlignedGroupingArg::Communities)]
     pub aligned_grouping: AlignedGroupingArg,
+    /// Do not search each class's plane for copies that no instance covers, by its members'
+    /// depth images (the extent stage's last step, motif_detect::copies; not in the thesis, on
+    /// by default: a style whose other copies a class absorbed keeps too few copies for the
+    /// co-occurrence analysis). No effect with `--no-aligned` or `--regroup none`.
+    #[arg(long)]
+    pub no_copies: bool,
     /// Also print, per level and annotated class, how many instances EM + SC located (some
     /// detected box matches) and how many the recall credited, summed over the scenes, and the
     /// R and F that no grouping or pruning of its boxes can exceed (the JSON report always has
@@ -1002,6 +1008,12 @@ pub struct DetectArgs {
     /// members it resembles most. No effect with `--no-aligned` or `--regroup none`.
     #[arg(long, value_enum, default_value_t = AlignedGroupingArg::Communities)]
     pub aligned_grouping: AlignedGroupingArg,
+    /// Do not search each class's plane for copies that no instance covers, by its members'
+    /// depth images (the extent stage's last step, motif_detect::copies; not in the thesis, on
+    /// by default: a style whose other copies a class absorbed keeps too few copies for the
+    /// co-occurrence analysis). No effect with `--no-aligned` or `--regroup none`.
+    #[arg(long)]
+    pub no_copies: bool,
     /// Keep the extent stage's boxes as grown instead of fitting each to the points it holds
     /// (a step of the stage, on by default: boxes padded around creases and grown to segments
     /// reach past the block; fitted, they overlap the true blocks more, F at τ = 0.5 rose from

@@ -1254,6 +1254,19 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
     let o = motif(&["detect", "s.ply", "--aligned-grouping", "sideways", "-o", "r10.json"], dir.path());
     assert!(!o.status.success() && stderr(&o).contains("sideways"), "{}", stderr(&o));
     assert!(!dir.path().join("r10.json").exists());
+    // The search for copies runs by default (in the options and the report), not with
+    // `--no-copies`, nor with `--no-aligned`, whose images it uses.
+    assert_eq!(def["options"]["extent"]["copies"]["enabled"], true);
+    assert!(def["report"]["extent"]["copies"]["classes"].is_u64(), "{}", def["report"]["extent"]);
+    assert_eq!(rep["options"]["extent"]["copies"]["enabled"], false);
+    assert_eq!(rep["report"]["extent"]["copies"]["nodes"], 0);
+    let args =
+        ["detect", "s.ply", "--epsilon", "0.002", "--no-copies", "-o", "r11.json", "--json", "r11.rep.json"];
+    let o = motif(&args, dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let nc = &read("r11.rep.json");
+    assert_eq!(nc["options"]["extent"]["copies"]["enabled"], false);
+    assert_eq!(nc["report"]["extent"]["copies"]["nodes"], 0);
     for key in ["incoherent_classes", "outliers"] {
         assert!(read("r2.rep.json")["report"]["extent"]["content"][key].is_u64(), "{key}");
     }

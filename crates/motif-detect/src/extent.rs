@@ -80,6 +80,10 @@
 //!    few relative shifts,
 //!    its own resembles most ([`crate::aligned`]): a box fitted to half a window, or one that
 //!    left a window's shutters out, still pictures the window under it.
+//! 10. **Copies.** Each class of three or more pictured instances is searched for along its
+//!     plane by its members' depth images, and copies that no instance covers are added
+//!     ([`crate::copies`]): a style whose other copies a class absorbed is left too few copies
+//!     for the co-occurrence analysis to find.
 //!
 //! # On by default
 //! [`Regroup::Extent`] is the default (`motif detect --regroup none` gives the thesis's output).
@@ -231,6 +235,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::aligned::{AlignedOptions, AlignedReport, realign};
 use crate::content::{ContentOptions, ContentReport, prune, reassign};
+use crate::copies::{CopiesOptions, CopiesReport, find_copies};
 use crate::grid::SpatialHash;
 use crate::instances::{Class, Instance, InstanceOptions, overlaps_any};
 use crate::preprocess::{Feature, Preprocessed};
@@ -338,6 +343,9 @@ pub struct ExtentOptions {
     /// Step 9: instances reassigned again by depth images at one common scale, compared at the
     /// best shift ([`crate::aligned`]).
     pub aligned: AlignedOptions,
+    /// Step 10: copies of the classes found by their members' depth images
+    /// ([`crate::copies`]).
+    pub copies: CopiesOptions,
 }
 
 impl Default for ExtentOptions {
@@ -365,6 +373,7 @@ impl Default for ExtentOptions {
             fit_trim: 0.002,
             content: ContentOptions::default(),
             aligned: AlignedOptions::default(),
+            copies: CopiesOptions::default(),
         }
     }
 }
@@ -394,6 +403,8 @@ pub struct ExtentReport {
     pub content: ContentReport,
     /// What step 9 did ([`crate::aligned`]).
     pub aligned: AlignedReport,
+    /// What step 10 did ([`crate::copies`]).
+    pub copies: CopiesReport,
 }
 
 impl Segments {
@@ -958,6 +969,17 @@ pub fn regroup(
     report.content = reassign(&mut classes, &pre.points, &hash, eps, merge_overlap, &o.content);
     prune(&mut classes, &pre.points, &hash, eps, &o.content, &mut report.content);
     report.aligned = realign(&mut classes, &pre.points, &hash, eps, merge_overlap, &o.aligned);
+    report.copies = find_copies(
+        &mut classes,
+        features,
+        &pre.points,
+        &hash,
+        eps,
+        merge_overlap,
+        io.min_instance_features,
+        &o.aligned,
+        &o.copies,
+    );
     // Stable: the co-occurrence classes keep their order among classes of equal size.
     classes.sort_by_key(|c| std::cmp::Reverse(c.instances.len()));
     (classes, report)

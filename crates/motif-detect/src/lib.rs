@@ -33,6 +33,7 @@ pub mod class_merge;
 pub mod communities;
 pub mod content;
 pub mod cooccurrence;
+pub mod copies;
 pub mod detection;
 pub mod dictionary;
 pub mod error;

@@ -110,6 +110,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         o.extent.repeated_segments = a.repeated_segments.into();
         o.extent.content.enabled = !a.no_content;
         o.extent.aligned.enabled = !a.no_aligned;
+        o.extent.copies.enabled = !a.no_aligned && !a.no_copies;
         o.extent.aligned.grouping = a.aligned_grouping.into();
         o
     };

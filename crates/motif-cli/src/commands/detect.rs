@@ -95,6 +95,7 @@ pub fn options(a: &DetectArgs, g: &GlobalArgs) -> DetectOptions {
     o.extent.fit_boxes = !a.no_box_fit;
     o.extent.content.enabled = !a.no_content;
     o.extent.aligned.enabled = !a.no_aligned;
+    o.extent.copies.enabled = !a.no_aligned && !a.no_copies;
     o.extent.aligned.grouping = a.aligned_grouping.into();
     o.extent.fit_trim = a.fit_trim;
     o
