@@ -22,13 +22,18 @@
 //! 2. **Search.** A grid over the class's plane (centred on the box of the resampled points
 //!    within its slab: the members' median position along t, ± half the slab), one node every
 //!    `2 ×` [`crate::aligned::AlignedOptions::max_shift`] cells, so that every position is
-//!    within one shift of a node. At each node, the node's image against each template: the
-//!    distance of [`crate::aligned::distance`] and the shift of its best alignment. A node's
-//!    score for a class is the median distance to its templates over the class's spread r.
-//! 3. **Candidates.** A node whose best score (over the classes of its axis) is at most
-//!    [`CopiesOptions::accept`] is moved by the templates' median shift to where the block
-//!    lies, pictured again there, and kept if it still scores within `accept` for that class.
-//!    Its box is the class's median pictured box, centred there.
+//!    within one shift of a node; only nodes within one step (on the plane) of a salient
+//!    feature inside the slab that no instance box holds are pictured, since a copy must hold
+//!    features no other instance explains. At each node, the node's image against each
+//!    template: the distance of [`crate::aligned::distance`] and the shift of its best
+//!    alignment. The node's raw score is the median distance to the class's templates, and its
+//!    score that over the class's spread r.
+//! 3. **Candidates.** A node scoring at most [`CopiesOptions::accept`] is moved by the
+//!    templates' median shift to where the block lies, pictured again there, and kept if it
+//!    still scores within `accept`, its raw score is below 1 (it matches the templates better
+//!    than a plain plane would), and no other searched class of the axis, pictured there at its
+//!    own depth and slab, has a lower raw score. Its box is the median box of the class's flat
+//!    members, centred there.
 //! 4. **New instances.** Candidates in order of score: one is added to its class when its box
 //!    holds at least [`crate::instances::InstanceOptions::min_instance_features`] salient
 //!    features and overlaps no instance of any class, nor a copy added before it, by more than
@@ -41,8 +46,15 @@
 //! The scale, image and shift range are those of [`crate::aligned`], so a copy is found on the
 //! terms by which the step before grouped the classes. The grid is centred on its region, so a
 //! rigid motion of the input (quarter turns included) moves it with the points. Nodes are
-//! independent (parallel); the greedy adding is sequential and ordered by score, then node, so
-//! the result does not depend on the thread count.
+//! independent (parallel); the greedy adding is sequential and ordered by score, then node and
+//! class, so the result does not depend on the thread count. The best shift prefers, among
+//! equal distances, the one nearest zero, so a featureless patch does not drift to a corner;
+//! invariance to a mirror holds up to exact ties in floating point.
+//!
+//! The library runs this step whenever [`CopiesOptions::enabled`] is set; the CLI's
+//! `--no-aligned` turns it off too, since it searches with the aligned step's images. A new
+//! instance's `centre` is the salient feature nearest its box's centre (as for the classes of
+//! [`crate::segment_classes`]), not a member of the class's median word.
 //!
 //! # Measured
 //! On the harness of [`crate::aligned`] (`motif example scene-facade|scene-street --difficulty
@@ -56,7 +68,8 @@
 //!
 //! On the hard levels it added 22 boxes to the facades (17 on blocks no box located, 5 on
 //! blocks already located, none on no block) and 19 to the streets (15, 4, none). Cost: about
-//! 0.1–0.3 s per 300k-point scene (a few hundred nodes per class, eight templates).
+//! 0.2–0.5 s per 300k-point scene (a few hundred nodes per class, eight templates; measured
+//! with `motif detect --json` with and without `--no-copies` on four scenes).
 //!
 //! Variants, measured on the hard levels in the same way (facades / streets; 0.838 / 0.701
 //! without the step):
@@ -90,7 +103,7 @@ use crate::content::{depth_image, plane_axes, thin_axes};
 use crate::extent::{median, median_box_size};
 use crate::grid::SpatialHash;
 use crate::instances::{Class, Instance, overlaps_any};
-use crate::preprocess::Feature;
+use crate::preprocess::{Feature, nearest_feature};
 
 /// Fewest pictured instances a class needs to be searched for: with two, its spread is one
 /// distance, no measure of how its copies vary.
@@ -107,7 +120,8 @@ pub struct CopiesOptions {
     pub templates: usize,
     /// A position is a copy when the median of its distances to the class's templates is at
     /// most this multiple of the class's spread (the median over members of their median
-    /// distance to the other members): as like the class as its typical member is. Default 1.
+    /// distance to the other members): 1 is as like the class as its typical member is. Default
+    /// 1.2.
     pub accept: f64,
     /// Only classes whose spread is at most this are searched: members that leave more of each
     /// other's relief unexplained than this share are not alike enough to be a template (a
@@ -160,7 +174,8 @@ impl CopiesOptions {
 pub struct CopiesReport {
     /// Classes searched (enough pictured members).
     pub classes: usize,
-    /// Grid nodes pictured.
+    /// Grid nodes near an unexplained feature, compared with the templates where the scan
+    /// shows enough of them.
     pub nodes: usize,
     /// Candidates that scored within the threshold where they were moved to.
     pub candidates: usize,
@@ -203,7 +218,8 @@ fn coverage(im: &Image, core: usize) -> f64 {
 /// i + shift.
 fn best_shift(a: &Image, b: &Image, core: usize, max_shift: usize) -> Option<[i64; 2]> {
     let n = a.n;
-    if b.n != n || core == 0 || core > n || a.cells.len() != n * n || b.cells.len() != n * n {
+    let whole = |im: &Image| im.cells.len() == n * n && im.confidence.len() == n * n;
+    if b.n != n || core == 0 || core > n || !whole(a) || !whole(b) {
         return None;
     }
     let o = (n - core) / 2;
@@ -221,8 +237,12 @@ fn best_shift(a: &Image, b: &Image, core: usize, max_shift: usize) -> Option<[i6
                     weight += w;
                 }
             }
-            if weight > 0.0 && best.is_none_or(|(v, _)| sum / weight < v) {
-                best = Some((sum / weight, [dx, dy]));
+            if weight > 0.0 {
+                let (v, r) = (sum / weight, dx * dx + dy * dy);
+                let better = best.is_none_or(|(bv, [bx, by])| v < bv || (v == bv && r < bx * bx + by * by));
+                if better {
+                    best = Some((v, [dx, dy]));
+                }
             }
         }
     }
@@ -257,6 +277,12 @@ pub fn find_copies(
     };
     let mut found: Vec<(f64, usize, usize, Aabb, Mat4)> = Vec::new();
     let view: &[Class] = classes;
+    // Salient features no instance box holds: a copy must hold some.
+    let free: Vec<Point3> = features
+        .iter()
+        .map(|f| f.position)
+        .filter(|&p| !view.iter().any(|c| c.instances.iter().any(|i| i.aabb.contains(p))))
+        .collect();
     for t in 0..3 {
         let [a0, a1] = plane_axes(t);
         let members: Vec<Vec<usize>> = classes
@@ -337,7 +363,7 @@ pub fn find_copies(
             }
             let mut order: Vec<usize> = (0..k).collect();
             order.sort_by(|&x, &y| typicality[x].total_cmp(&typicality[y]).then(x.cmp(&y)));
-            order.truncate(o.templates);
+            order.truncate(o.templates.max(1));
             let first = insts[pictured[order[0]].0];
             let size = median_box_size(&m.iter().map(|&k| c.instances[k].clone()).collect::<Vec<_>>());
             searched.push(Searched {
@@ -375,8 +401,25 @@ pub fn find_copies(
             // Centred on the region, so that a mirror of the input mirrors the grid onto itself.
             let mid = [0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])];
             let reach = |q: usize| (0.5 * (hi[q] - lo[q]) / step).ceil() as i64;
+            // Nodes within one step of an unexplained feature in the slab.
+            let mut near: std::collections::HashSet<(i64, i64)> = std::collections::HashSet::new();
+            for p in free.iter().filter(|p| (p[t] - s.along).abs() <= s.slab_half) {
+                let range = |q: usize, x: f64| {
+                    let lo = ((x - step - mid[q]) / step).ceil() as i64;
+                    let hi = ((x + step - mid[q]) / step).floor() as i64;
+                    lo..=hi
+                };
+                for i in range(0, p[a0]) {
+                    for j in range(1, p[a1]) {
+                        near.insert((i, j));
+                    }
+                }
+            }
             for i in -reach(0)..=reach(0) {
                 for j in -reach(1)..=reach(1) {
+                    if !near.contains(&(i, j)) {
+                        continue;
+                    }
                     let mut c = [0.0; 3];
                     c[t] = s.along;
                     c[a0] = mid[0] + i as f64 * step;
@@ -425,12 +468,12 @@ pub fn find_copies(
                 let v = raw / s.spread;
                 // The block is a copy of the class it is most like: another class of this axis
                 // whose templates it resembles more takes it, if its own search finds it.
-                let likest = searched
-                    .iter()
-                    .enumerate()
-                    .filter(|&(sj, _)| sj != si)
-                    .all(|(_, other)| raw_at(other, moved).is_none_or(|(r, _)| r > raw));
-                (v <= o.accept && likest).then_some((v, si, moved))
+                let likest = searched.iter().enumerate().filter(|&(sj, _)| sj != si).all(|(_, other)| {
+                    let mut there = moved;
+                    there[t] = other.along;
+                    raw_at(other, there).is_none_or(|(r, _)| r > raw)
+                });
+                (v <= o.accept && raw < 1.0 && likest).then_some((v, si, moved))
             })
             .collect();
         report.nodes += nodes.len();
@@ -450,7 +493,7 @@ pub fn find_copies(
             found.push((v, node, s.class, aabb, frame));
         }
     }
-    // Greedy, best score first; ties by axis order of discovery.
+    // Greedy, best score first; ties by node (per axis), then class.
     found.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2)));
     let mut added: Vec<(usize, Instance)> = Vec::new();
     for (_, _, ci, aabb, frame) in found {
@@ -459,15 +502,7 @@ pub fn find_copies(
         if inside.len() < min_features.max(1) {
             continue;
         }
-        let centre_of = aabb.center();
-        let centre = *inside
-            .iter()
-            .min_by(|&&a, &&b| {
-                motif_core::geometry::dist2(features[a].position, centre_of)
-                    .total_cmp(&motif_core::geometry::dist2(features[b].position, centre_of))
-                    .then(a.cmp(&b))
-            })
-            .expect("at least one feature");
+        let centre = nearest_feature(features, &inside, aabb.center()).expect("at least one feature");
         let inst = Instance {
             centre,
             flip: 0,
@@ -620,6 +655,32 @@ mod tests {
         let r = run(&mut classes, &pts, &hash, &fewer, &CopiesOptions::default());
         assert_eq!(r.added, 0, "{r:?}");
         assert!(r.candidates > 0, "the picture matched: {r:?}");
+    }
+
+    /// An image whose only relief is a `w × w` square of depth 1 with its corner at (`x`, `y`).
+    fn square(n: usize, x: usize, y: usize, w: usize) -> Image {
+        let mut cells = vec![0.0; n * n];
+        for i in x..x + w {
+            for j in y..y + w {
+                cells[i * n + j] = 1.0;
+            }
+        }
+        Image { n, cells, confidence: vec![0.9; n * n] }
+    }
+
+    #[test]
+    fn the_best_shift_points_from_a_core_cell_to_the_same_relief_in_the_other_image() {
+        // `a`'s square at (7, 7), `b`'s at (9, 4): a's cell i lies on b's cell i + (2, −3).
+        let a = square(21, 7, 7, 4);
+        for (bx, by, want) in [(9, 4, [2, -3]), (7, 7, [0, 0]), (4, 7, [-3, 0]), (7, 11, [0, 4])] {
+            assert_eq!(best_shift(&a, &square(21, bx, by, 4), 11, 5), Some(want), "square at ({bx}, {by})");
+        }
+        // A blank patch ties at every shift: the shift nearest zero is kept.
+        let blank = Image { n: 21, cells: vec![0.0; 441], confidence: vec![0.9; 441] };
+        assert_eq!(best_shift(&blank, &blank, 11, 5), Some([0, 0]));
+        // Nothing seen: no shift.
+        let blind = Image { confidence: vec![0.0; 441], ..blank.clone() };
+        assert_eq!(best_shift(&blind, &blank, 11, 5), None);
     }
 
     #[test]

@@ -100,6 +100,16 @@ pub struct Feature {
     pub kappa: f64,
 }
 
+/// Of the features `ids`, the one nearest `to` (the lowest index on ties); `None` when `ids` is
+/// empty.
+pub(crate) fn nearest_feature(features: &[Feature], ids: &[usize], to: Point3) -> Option<usize> {
+    ids.iter().copied().min_by(|&a, &b| {
+        motif_core::geometry::dist2(features[a].position, to)
+            .total_cmp(&motif_core::geometry::dist2(features[b].position, to))
+            .then(a.cmp(&b))
+    })
+}
+
 impl Feature {
     /// Local z axis, x × y.
     pub fn z(&self) -> Point3 {

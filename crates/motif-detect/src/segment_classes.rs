@@ -150,7 +150,7 @@ use crate::extent::{
     median_box_size, smallest_rectangle,
 };
 use crate::instances::{Class, Instance, InstanceOptions};
-use crate::preprocess::{Feature, Preprocessed};
+use crate::preprocess::{Feature, Preprocessed, nearest_feature};
 
 /// Whether unexplained segments repeated by size become classes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -444,14 +444,7 @@ pub(crate) fn segment_classes(
                 let c = &candidates[i];
                 let fs = features_of[c.segment].clone();
                 let centroid = [c.frame[0][3], c.frame[1][3], c.frame[2][3]];
-                let centre = *fs
-                    .iter()
-                    .min_by(|&&a, &&b| {
-                        motif_core::geometry::dist2(features[a].position, centroid)
-                            .total_cmp(&motif_core::geometry::dist2(features[b].position, centroid))
-                            .then(a.cmp(&b))
-                    })
-                    .expect("candidates hold features");
+                let centre = nearest_feature(features, &fs, centroid).expect("candidates hold features");
                 Instance {
                     centre,
                     flip: 0,

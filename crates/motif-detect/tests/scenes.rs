@@ -82,6 +82,7 @@ fn ground_truth_is_consistent_with_the_cloud() {
             assert_eq!(tagged, s.stats.instance_points, "{what}");
             assert_eq!(
                 s.stats.instance_points
+                    + s.stats.hidden_points
                     + s.stats.background_points
                     + s.stats.clutter_points
                     + s.stats.outlier_points,
@@ -130,6 +131,19 @@ fn instances_the_scan_does_not_show_are_not_annotated() {
         let bins = size_of(&s.ground_truth, "bin");
         assert!(s.stats.hidden_instances >= 1, "seed {seed}: {:?}", class_sizes(&s.ground_truth));
         assert_eq!(bins + s.stats.hidden_instances, 6, "seed {seed}: only bins are hidden here");
+        let annotated: usize = s
+            .ground_truth
+            .classes
+            .iter()
+            .flat_map(|c| &c.instances)
+            .map(|i| i.points.as_ref().map_or(0, Vec::len))
+            .sum();
+        assert_eq!(annotated, s.stats.instance_points, "seed {seed}");
+        assert!(
+            s.stats.hidden_points < 50,
+            "seed {seed}: {} points on hidden instances",
+            s.stats.hidden_points
+        );
         for class in &s.ground_truth.classes {
             for inst in &class.instances {
                 let n = inst.points.as_ref().map_or(0, Vec::len);

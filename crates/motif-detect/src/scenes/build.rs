@@ -228,13 +228,14 @@ pub(crate) fn build(
             points_of[o as usize].push(i as u32);
         }
     }
-    let mut hidden_instances = 0usize;
+    let (mut hidden_instances, mut hidden_points) = (0usize, 0usize);
     let mut classes: Vec<(Mat4, DetectedClass)> = Vec::new();
     let mut class_slot: Vec<Option<usize>> = vec![None; layout.templates.len()];
     for (k, inst) in layout.instances.iter().enumerate() {
         let (drawn, kept) = seen.per_instance[k];
         if (kept as f64) < MIN_VISIBLE_SURFACE * drawn as f64 {
             hidden_instances += 1;
+            hidden_points += points_of[k].len();
             continue;
         }
         let slot = match class_slot[inst.class] {
@@ -277,12 +278,13 @@ pub(crate) fn build(
         scanners: layout.scanners.clone(),
         visible_fraction: seen.kept as f64 / seen.drawn.max(1) as f64,
         instance_visible_fraction: seen.instance_kept as f64 / seen.instance_drawn.max(1) as f64,
-        instance_points: owner.iter().filter(|&&o| o >= 0).count(),
+        instance_points: owner.iter().filter(|&&o| o >= 0).count() - hidden_points,
         background_points: count(-1),
         clutter_points: count(-2),
         outlier_points: count(-3),
         clutter_objects: layout.clutter.len(),
         hidden_instances,
+        hidden_points,
         triangles: sm.mesh.num_triangles(),
     };
     let cloud = PointCloud { positions, normals: Some(normals), ..Default::default() };

@@ -41,10 +41,11 @@
 //! annotating the scan could not mark it ([`SceneStats::hidden_instances`] counts them; on the
 //! hard streets of seeds 1–12, 12 of the 586 instances placed, all bins). Instance `k`'s
 //! `transform` is `instance_from_template`, the rigid motion (translation, yaw about y) from
-//! instance 0's pose to instance `k`'s, not including the instance's own non-rigid variation. `bbox_min/bbox_max` is the box of the instance's whole
-//! (varied) geometry, visible or not, grown to contain its noisy points; `points` are the indices
-//! of the scene points sampled on the instance. Points of the wall, the ground, clutter and
-//! outliers belong to no instance.
+//! instance 0's pose to instance `k`'s, not including the instance's own non-rigid variation.
+//! `bbox_min/bbox_max` is the box of the instance's whole (varied) geometry, visible or not,
+//! grown to contain its noisy points; `points` are the indices of the scene points sampled on
+//! the instance. Points of the wall, the ground, clutter, outliers and hidden instances belong
+//! to no instance.
 //!
 //! Conventions: metres; y up, x along the facade, z towards the street (the wall's front face is
 //! `z = 0`). Points carry unit normals: the normal of the triangle they were sampled on, outward
@@ -391,7 +392,7 @@ pub struct SceneStats {
     pub visible_fraction: f64,
     /// The same over the samples on instances only.
     pub instance_visible_fraction: f64,
-    /// Points sampled on instances.
+    /// Points sampled on the annotated instances.
     pub instance_points: usize,
     /// Points on the wall and the ground.
     pub background_points: usize,
@@ -403,7 +404,12 @@ pub struct SceneStats {
     pub clutter_objects: usize,
     /// Instances placed but left out of the ground truth because the scanners see less than
     /// [`MIN_VISIBLE_SURFACE`] of their surface (0 for complete sampling).
+    #[serde(default)]
     pub hidden_instances: usize,
+    /// Points sampled on those hidden instances (a few at most; they belong to no instance of
+    /// the ground truth).
+    #[serde(default)]
+    pub hidden_points: usize,
     /// Triangles of the scene (what the scanners ray-cast against).
     pub triangles: usize,
 }
