@@ -593,14 +593,14 @@ fn host(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::content::tests::{H, Window, class_of, opening, styled_scene};
     use crate::grid::SpatialHash;
     use motif_core::geometry::Aabb;
 
     /// An image whose only relief is a `w × w` square of depth 1 with its corner at (`x`, `y`).
-    fn square(n: usize, x: usize, y: usize, w: usize) -> Image {
+    pub(crate) fn square(n: usize, x: usize, y: usize, w: usize) -> Image {
         let mut cells = vec![0.0; n * n];
         for i in x..x + w {
             for j in y..y + w {

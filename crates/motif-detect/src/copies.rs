@@ -537,6 +537,7 @@ pub fn find_copies(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::aligned::tests::square;
     use crate::content::tests::{H, Window, class_of, opening, styled_scene};
 
     /// Eight windows 3 m apart, styles as `two_bars`, sized as the benchmark scenes' styles (as
@@ -655,17 +656,6 @@ mod tests {
         let r = run(&mut classes, &pts, &hash, &fewer, &CopiesOptions::default());
         assert_eq!(r.added, 0, "{r:?}");
         assert!(r.candidates > 0, "the picture matched: {r:?}");
-    }
-
-    /// An image whose only relief is a `w × w` square of depth 1 with its corner at (`x`, `y`).
-    fn square(n: usize, x: usize, y: usize, w: usize) -> Image {
-        let mut cells = vec![0.0; n * n];
-        for i in x..x + w {
-            for j in y..y + w {
-                cells[i * n + j] = 1.0;
-            }
-        }
-        Image { n, cells, confidence: vec![0.9; n * n] }
     }
 
     #[test]
