@@ -285,7 +285,7 @@ pub fn find_copies(
         .collect();
     for t in 0..3 {
         let [a0, a1] = plane_axes(t);
-        let members: Vec<Vec<usize>> = classes
+        let members: Vec<Vec<usize>> = view
             .iter()
             .enumerate()
             .map(|(ci, c)| {
@@ -355,17 +355,14 @@ pub fn find_copies(
             let typicality: Vec<f64> =
                 (0..k).map(|a| median((0..k).filter(|&b| b != a).map(|b| d[a][b]).collect())).collect();
             let spread = median(typicality.clone());
-            if !(spread > 0.0 && spread.is_finite()) {
-                continue;
-            }
-            if spread > o.max_spread {
+            if !(spread > 0.0 && spread.is_finite()) || spread > o.max_spread {
                 continue;
             }
             let mut order: Vec<usize> = (0..k).collect();
             order.sort_by(|&x, &y| typicality[x].total_cmp(&typicality[y]).then(x.cmp(&y)));
             order.truncate(o.templates.max(1));
             let first = insts[pictured[order[0]].0];
-            let size = median_box_size(&m.iter().map(|&k| c.instances[k].clone()).collect::<Vec<_>>());
+            let size: Point3 = [0, 1, 2].map(|a| median(insts.iter().map(|i| i.aabb.extent()[a]).collect()));
             searched.push(Searched {
                 class: ci,
                 templates: order.iter().map(|&x| pictured[x].1.clone()).collect(),
