@@ -315,6 +315,43 @@ pub fn distance(a: &Image, b: &Image, o: &AlignedOptions) -> f64 {
     shifted_distance(a, b, o.core_cells, o.max_shift).min(shifted_distance(b, a, o.core_cells, o.max_shift))
 }
 
+/// The instances this step pictures, as (class, instance) pairs in class order: those whose own
+/// box is a slab across their class's thin axis `thin` ([`AlignedOptions::flatness`]); and the
+/// image cell size per thin axis, S / [`AlignedOptions::cells_per_block`] with S the median
+/// larger side of those instances' boxes across it (0 for an axis with none).
+pub(crate) fn pictured(
+    classes: &[Class],
+    thin: &[Option<usize>],
+    o: &AlignedOptions,
+) -> (Vec<(usize, usize)>, [f64; 3]) {
+    let flat = |ci: usize, k: usize| {
+        let Some(t) = thin[ci] else { return false };
+        let e = classes[ci].instances[k].aabb.extent();
+        let [a0, a1] = plane_axes(t);
+        e[t] <= o.flatness * e[a0].min(e[a1])
+    };
+    let items: Vec<(usize, usize)> = classes
+        .iter()
+        .enumerate()
+        .flat_map(|(ci, c)| (0..c.instances.len()).map(move |k| (ci, k)))
+        .filter(|&(ci, k)| flat(ci, k))
+        .collect();
+    let larger_side = |ci: usize, k: usize, t: usize| {
+        let e = classes[ci].instances[k].aabb.extent();
+        let [a0, a1] = plane_axes(t);
+        e[a0].max(e[a1])
+    };
+    let cell: [f64; 3] = [0, 1, 2].map(|t| {
+        let sides: Vec<f64> = items
+            .iter()
+            .filter(|(ci, _)| thin[*ci] == Some(t))
+            .map(|&(ci, k)| larger_side(ci, k, t))
+            .collect();
+        median(sides) / o.cells_per_block
+    });
+    (items, cell)
+}
+
 /// Groups the instances of `classes` again by aligned images, as [`AlignedOptions::grouping`]
 /// says (module documentation). `points` are the resampled points, indexed by `hash`; `eps` is
 /// ε; `merge_overlap` is [`crate::instances::InstanceOptions::merge_overlap`]. Classes come
@@ -342,33 +379,7 @@ pub fn realign(
         return report;
     }
     let thin = thin_axes(classes);
-    // Instances whose own box is a slab across their class's thin axis.
-    let flat = |ci: usize, k: usize| {
-        let Some(t) = thin[ci] else { return false };
-        let e = classes[ci].instances[k].aabb.extent();
-        let [a0, a1] = plane_axes(t);
-        e[t] <= o.flatness * e[a0].min(e[a1])
-    };
-    let items: Vec<(usize, usize)> = classes
-        .iter()
-        .enumerate()
-        .flat_map(|(ci, c)| (0..c.instances.len()).map(move |k| (ci, k)))
-        .filter(|&(ci, k)| flat(ci, k))
-        .collect();
-    // Cell size per thin axis: S / cells_per_block.
-    let larger_side = |ci: usize, k: usize, t: usize| {
-        let e = classes[ci].instances[k].aabb.extent();
-        let [a0, a1] = plane_axes(t);
-        e[a0].max(e[a1])
-    };
-    let cell: [f64; 3] = [0, 1, 2].map(|t| {
-        let sides: Vec<f64> = items
-            .iter()
-            .filter(|(ci, _)| thin[*ci] == Some(t))
-            .map(|&(ci, k)| larger_side(ci, k, t))
-            .collect();
-        median(sides) / o.cells_per_block
-    });
+    let (items, cell) = pictured(classes, &thin, o);
     let images: Vec<Option<Image>> = items
         .par_iter()
         .map(|&(ci, k)| {

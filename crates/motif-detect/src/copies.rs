@@ -98,7 +98,7 @@ use motif_core::geometry::{Aabb, Mat4};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::aligned::{AlignedOptions, Image, distance};
+use crate::aligned::{AlignedOptions, Image, distance, pictured};
 use crate::content::{depth_image, plane_axes, thin_axes};
 use crate::extent::{median, median_box_size};
 use crate::grid::SpatialHash;
@@ -270,11 +270,7 @@ pub fn find_copies(
         return report;
     }
     let thin = thin_axes(classes);
-    let flat = |c: &Class, k: usize, t: usize| {
-        let e = c.instances[k].aabb.extent();
-        let [a0, a1] = plane_axes(t);
-        e[t] <= ao.flatness * e[a0].min(e[a1])
-    };
+    let (items, cells) = pictured(classes, &thin, ao);
     let mut found: Vec<(f64, usize, usize, Aabb, Mat4)> = Vec::new();
     let view: &[Class] = classes;
     // Salient features no instance box holds: a copy must hold some.
@@ -285,32 +281,12 @@ pub fn find_copies(
         .collect();
     for t in 0..3 {
         let [a0, a1] = plane_axes(t);
-        let members: Vec<Vec<usize>> = view
-            .iter()
-            .enumerate()
-            .map(|(ci, c)| {
-                if thin[ci] != Some(t) {
-                    return Vec::new();
-                }
-                (0..c.instances.len()).filter(|&k| flat(c, k, t)).collect()
-            })
-            .collect();
-        // The cell size of [`crate::aligned`]: the median larger side over the pictured
-        // instances of this axis, over cells_per_block.
-        let sides: Vec<f64> = members
-            .iter()
-            .enumerate()
-            .flat_map(|(ci, m)| {
-                m.iter().map(move |&k| {
-                    let e = view[ci].instances[k].aabb.extent();
-                    e[a0].max(e[a1])
-                })
-            })
-            .collect();
-        if sides.is_empty() {
-            continue;
+        // Each class's pictured instances on this axis.
+        let mut members: Vec<Vec<usize>> = vec![Vec::new(); view.len()];
+        for &(ci, k) in items.iter().filter(|(ci, _)| thin[*ci] == Some(t)) {
+            members[ci].push(k);
         }
-        let cell = median(sides) / ao.cells_per_block;
+        let cell = cells[t];
         if !(cell > 0.0 && cell.is_finite()) {
             continue;
         }
