@@ -703,7 +703,10 @@ fn bench_retarget_reports_fig_4_8_figures() {
             assert_eq!(stages.len(), 5, "{m}");
             assert!(stages.iter().all(|&v| v >= 0.0), "{m}");
             assert!(stages.iter().sum::<f64>() <= f["retarget_ms"].as_f64().unwrap(), "{m}");
+            // The next size of a kept session is timed too.
+            assert!(f["resize_ms"].as_f64().unwrap() > 0.0, "{m}");
         }
+        assert!(m["resize_ratio"].as_f64().unwrap() > 0.0, "{m}");
     }
     let i = &r["interactive"][0];
     assert_eq!((i["nodes"].as_u64(), i["labels"].as_u64()), (Some(900), Some(30)));

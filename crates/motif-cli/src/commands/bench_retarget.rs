@@ -6,7 +6,9 @@
 //! Every figure is a median over `--repeats` runs. The retargeting step is timed as the pipeline
 //! runs it: a session built from the offset detection's features (thesis 4.2.2 reuses them for
 //! eq. 4.4), then one solve and the stitching. The offset analysis, shared by both methods, is
-//! reported in its own column and added for the one-shot ratio.
+//! reported in its own column and added for the one-shot ratio. The next-size table times a
+//! session that is kept, as the studio keeps it: prepared, used at the slider's previous position,
+//! then retargeted to this size.
 
 use std::time::Instant;
 
@@ -38,6 +40,9 @@ struct ModelRow {
     retarget_ratio: f64,
     /// (analysis + dense step) / (analysis + offsets step).
     one_shot_ratio: f64,
+    /// Dense further size / offsets further size (sessions prepared once, as while a user
+    /// drags a size slider).
+    resize_ratio: f64,
 }
 
 #[derive(Debug, Serialize)]
@@ -51,6 +56,11 @@ struct MethodFigures {
     infinite_seams: usize,
     graph_cut_ms: f64,
     retarget_ms: f64,
+    /// Retargeting a session already prepared and used at the previous size (one cell fewer
+    /// along each growing direction): its voxels, voxel descriptors and the voxel distances that
+    /// size needed are kept, so this times the new distances, the graph cut and the stitching,
+    /// what each new size costs while a user drags a size slider.
+    resize_ms: f64,
     /// Medians of the step's stages (voxelize, descriptors, distances, graph cut, stitch), ms.
     stages_ms: [f64; 5],
 }
@@ -218,6 +228,18 @@ pub fn run(a: BenchRetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 last = Some(r.report);
             }
             let Some(r) = last else { unreachable!("repeats >= 1") };
+            // A further size: the session is prepared and used at the slider's previous position
+            // (one cell fewer along each direction that grows), then timed at this size.
+            let previous = steps.map(|s| s - s.signum());
+            let mut resize = Vec::new();
+            for _ in 0..a.repeats {
+                let mut session =
+                    RetargetSession::with_features(&mesh, &features, &principal, &options, &NoProgress)?;
+                let _ = session.retarget(previous, &NoProgress)?;
+                let t = Instant::now();
+                let _ = session.retarget(steps, &NoProgress)?;
+                resize.push(ms(t));
+            }
             Ok(MethodFigures {
                 nodes: r.nodes,
                 labels: r.labels,
@@ -226,6 +248,7 @@ pub fn run(a: BenchRetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 infinite_seams: r.infinite_seams,
                 graph_cut_ms: median(cut),
                 retarget_ms: median(step),
+                resize_ms: median(resize),
                 stages_ms: stages.map(median),
             })
         };
@@ -241,6 +264,7 @@ pub fn run(a: BenchRetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             graph_cut_ratio: dense.graph_cut_ms / offsets.graph_cut_ms.max(1e-6),
             retarget_ratio: dense.retarget_ms / offsets.retarget_ms.max(1e-6),
             one_shot_ratio: (analysis_ms + dense.retarget_ms) / (analysis_ms + offsets.retarget_ms),
+            resize_ratio: dense.resize_ms / offsets.resize_ms.max(1e-6),
             offsets,
             dense,
         });
@@ -375,6 +399,17 @@ fn print_tables(r: &Report) {
     for m in &r.models {
         let row = |s: &[f64; 5]| s.iter().map(|v| format!("{v:>6.2}")).collect::<Vec<_>>().join(" ");
         println!("{:<14} offsets {} | dense {}", m.model, row(&m.offsets.stages_ms), row(&m.dense.stages_ms));
+    }
+    println!();
+    println!(
+        "Next size (a session prepared and used at one cell fewer per growing direction, as while a user drags a size slider; medians, ms)"
+    );
+    println!("{:<14} {:>9} {:>9} {:>8}", "model", "offsets", "dense", "size x");
+    for m in &r.models {
+        println!(
+            "{:<14} {:>9.2} {:>9.2} {:>8.1}",
+            m.model, m.offsets.resize_ms, m.dense.resize_ms, m.resize_ratio
+        );
     }
     println!();
     println!("Interactive size (thesis 4.4: ~1,000 nodes, 30 labels; target: graph cut < 20 ms)");
