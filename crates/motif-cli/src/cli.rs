@@ -677,6 +677,11 @@ pub struct BenchDetectArgs {
     /// Scene kind (scene-facade, scene-street, scene-parts).
     #[arg(long, default_value = "scene-facade")]
     pub kind: String,
+    /// Meshes used as extra building blocks of every scene, comma-separated (as `motif example
+    /// --parts`); with `--kind scene-parts` the scenes hold these alone, e.g. the natural shapes of
+    /// the shared data for the thesis's "non-man-made" figures.
+    #[arg(long, value_delimiter = ',', value_name = "FILES", value_parser = listed_path)]
+    pub parts: Vec<PathBuf>,
     /// Scenes (seeds) per difficulty.
     #[arg(long, default_value_t = 2)]
     pub scenes: usize,
@@ -739,6 +744,12 @@ pub struct BenchDetectArgs {
     /// co-occurrence analysis). No effect with `--no-aligned` or `--regroup none`.
     #[arg(long)]
     pub no_copies: bool,
+    /// Do not split classes of free-standing blocks by their shapes (the extent stage's step
+    /// after the copies, motif_detect::shape_split; not in the thesis, on by default: smooth
+    /// blocks of different shapes can share one class of co-occurring features). No effect with
+    /// `--regroup none`.
+    #[arg(long)]
+    pub no_shape_split: bool,
     /// Also print, per level and annotated class, how many instances EM + SC located (some
     /// detected box matches) and how many the recall credited, summed over the scenes, and the
     /// R and F that no grouping or pruning of its boxes can exceed (the JSON report always has
@@ -1014,6 +1025,12 @@ pub struct DetectArgs {
     /// co-occurrence analysis). No effect with `--no-aligned` or `--regroup none`.
     #[arg(long)]
     pub no_copies: bool,
+    /// Do not split classes of free-standing blocks by their shapes (the extent stage's step
+    /// after the copies, motif_detect::shape_split; not in the thesis, on by default: smooth
+    /// blocks of different shapes can share one class of co-occurring features). No effect with
+    /// `--regroup none`.
+    #[arg(long)]
+    pub no_shape_split: bool,
     /// Keep the extent stage's boxes as grown instead of fitting each to the points it holds
     /// (a step of the stage, on by default: boxes padded around creases and grown to segments
     /// reach past the block; fitted, they overlap the true blocks more, F at τ = 0.5 rose from

@@ -1103,6 +1103,45 @@ fn detect_rejects_an_option_out_of_range_by_its_flag_before_reading() {
 }
 
 #[test]
+fn bench_detect_builds_its_scenes_from_given_parts() {
+    let d = tmp();
+    assert!(motif(&["example", "gear", "gear.obj"], d.path()).status.success());
+    let args = [
+        "bench",
+        "detect",
+        "--kind",
+        "scene-parts",
+        "--parts",
+        "gear.obj",
+        "--scenes",
+        "1",
+        "--points",
+        "20000",
+        "--no-icp",
+        "--quiet",
+        "--json",
+    ];
+    let r = json_of(&motif(&args, d.path()));
+    assert_eq!(r["kind"], "scene-parts");
+    assert_eq!(r["parts"], serde_json::json!(["gear.obj"]));
+    let rows = r["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 6, "{r}");
+    for row in rows {
+        // The scenes hold the given part alone, six copies (`motif example --parts`).
+        let annotated = row["annotated"].as_array().unwrap();
+        assert_eq!(annotated.len(), 1, "{row}");
+        assert_eq!(
+            (annotated[0]["name"].as_str(), annotated[0]["instances"].as_u64()),
+            (Some("gear"), Some(6))
+        );
+    }
+    // A part that cannot be read stops the bench before any scene, naming the file.
+    let o = motif(&["bench", "detect", "--kind", "scene-parts", "--parts", "none.obj", "--no-icp"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("none.obj"), "{}", stderr(&o));
+}
+
+#[test]
 fn bench_detect_gives_standard_errors_and_the_paired_lead_over_sc() {
     let d = tmp();
     let args = ["bench", "detect", "--scenes", "2", "--points", "20000", "--no-icp", "--quiet", "--json"];
@@ -1263,13 +1302,28 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
     assert!(def["report"]["extent"]["copies"]["classes"].is_u64(), "{}", def["report"]["extent"]);
     assert_eq!(rep["options"]["extent"]["copies"]["enabled"], false);
     assert_eq!(rep["report"]["extent"]["copies"]["nodes"], 0);
-    let args =
-        ["detect", "s.ply", "--epsilon", "0.002", "--no-copies", "-o", "r11.json", "--json", "r11.rep.json"];
+    // The same for the split of free-standing classes by shape (`--no-shape-split`).
+    assert_eq!(def["options"]["extent"]["shapes"]["enabled"], true);
+    assert!(def["report"]["extent"]["shapes"]["classes"].is_u64(), "{}", def["report"]["extent"]);
+    let args = [
+        "detect",
+        "s.ply",
+        "--epsilon",
+        "0.002",
+        "--no-copies",
+        "--no-shape-split",
+        "-o",
+        "r11.json",
+        "--json",
+        "r11.rep.json",
+    ];
     let o = motif(&args, dir.path());
     assert!(o.status.success(), "{}", stderr(&o));
     let nc = &read("r11.rep.json");
     assert_eq!(nc["options"]["extent"]["copies"]["enabled"], false);
     assert_eq!(nc["report"]["extent"]["copies"]["nodes"], 0);
+    assert_eq!(nc["options"]["extent"]["shapes"]["enabled"], false);
+    assert_eq!(nc["report"]["extent"]["shapes"]["classes"], 0);
     for key in ["incoherent_classes", "outliers"] {
         assert!(read("r2.rep.json")["report"]["extent"]["content"][key].is_u64(), "{key}");
     }

@@ -529,31 +529,7 @@ fn communities(group: &[Option<usize>], d: &[f64], clash: &[Vec<usize>], o: &Ali
     let linked = |a: usize, b: usize| {
         a != b && group[a] == group[b] && d[a * m + b].is_finite() && !clash[a].contains(&b)
     };
-    // Each instance's scale: its distance to its scale_rank-th nearest linked instance (the
-    // farthest, when it has fewer).
-    let scale: Vec<Option<f64>> = (0..m)
-        .map(|a| {
-            let mut ds: Vec<f64> = (0..m).filter(|&b| linked(a, b)).map(|b| d[a * m + b]).collect();
-            ds.sort_by(f64::total_cmp);
-            (!ds.is_empty()).then(|| ds[o.scale_rank.clamp(1, ds.len()) - 1])
-        })
-        .collect();
-    let mut w = vec![0.0; m * m];
-    for a in 0..m {
-        for b in (a + 1..m).filter(|&b| linked(a, b)) {
-            let (Some(sa), Some(sb)) = (scale[a], scale[b]) else { continue };
-            let v = d[a * m + b];
-            let weight = if sa * sb > 0.0 {
-                (-v * v / (sa * sb)).exp()
-            } else if v == 0.0 {
-                1.0
-            } else {
-                0.0
-            };
-            w[a * m + b] = weight;
-            w[b * m + a] = weight;
-        }
-    }
+    let w = crate::communities::self_tuning_weights(d, m, linked, o.scale_rank);
     crate::communities::louvain(&w, m, o.resolution)
 }
 

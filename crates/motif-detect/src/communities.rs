@@ -57,6 +57,44 @@ pub fn louvain(w: &[f64], n: usize, resolution: f64) -> Vec<usize> {
     renumber(&local_moves(w, n, resolution, renumber(&membership).0)).0
 }
 
+/// The self-tuning affinity of Zelnik-Manor and Perona (2004) on the `m × m` distances `d`
+/// (row-major): w_ab = exp(−d_ab² / (s_a s_b)) for the pairs `linked(a, b)` (symmetric, never a
+/// node with itself), 0 for the others, where a node's scale s is its distance to its
+/// `rank`-th nearest linked node (the farthest, when it has fewer). Each node is measured
+/// against its own neighbourhood, so that a tight group and a loose one both stand out. Two
+/// nodes at scale 0 (exact copies) are joined with weight 1 when their distance is 0.
+pub fn self_tuning_weights(
+    d: &[f64],
+    m: usize,
+    linked: impl Fn(usize, usize) -> bool,
+    rank: usize,
+) -> Vec<f64> {
+    let scale: Vec<Option<f64>> = (0..m)
+        .map(|a| {
+            let mut ds: Vec<f64> = (0..m).filter(|&b| linked(a, b)).map(|b| d[a * m + b]).collect();
+            ds.sort_by(f64::total_cmp);
+            (!ds.is_empty()).then(|| ds[rank.clamp(1, ds.len()) - 1])
+        })
+        .collect();
+    let mut w = vec![0.0; m * m];
+    for a in 0..m {
+        for b in (a + 1..m).filter(|&b| linked(a, b)) {
+            let (Some(sa), Some(sb)) = (scale[a], scale[b]) else { continue };
+            let v = d[a * m + b];
+            let weight = if sa * sb > 0.0 {
+                (-v * v / (sa * sb)).exp()
+            } else if v == 0.0 {
+                1.0
+            } else {
+                0.0
+            };
+            w[a * m + b] = weight;
+            w[b * m + a] = weight;
+        }
+    }
+    w
+}
+
 /// Modularity of `membership` on `w` (module documentation), from its definition; 0 for a graph
 /// without weight.
 pub fn modularity(w: &[f64], n: usize, membership: &[usize], resolution: f64) -> f64 {

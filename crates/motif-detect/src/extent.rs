@@ -84,6 +84,9 @@
 //!     plane by its members' depth images, and copies that no instance covers are added
 //!     ([`crate::copies`]): a style whose other copies a class absorbed is left too few copies
 //!     for the co-occurrence analysis to find.
+//! 11. **Shapes.** A class of four or more free-standing instances is split when their
+//!     shapes, compared by alignment as in step 5, form communities ([`crate::shape_split`]):
+//!     smooth blocks of different shapes can share one class of co-occurring features.
 //!
 //! # On by default
 //! [`Regroup::Extent`] is the default (`motif detect --regroup none` gives the thesis's output).
@@ -240,6 +243,7 @@ use crate::grid::SpatialHash;
 use crate::instances::{Class, Instance, InstanceOptions, overlaps_any};
 use crate::preprocess::{Feature, Preprocessed};
 use crate::segment_classes::{RepeatedSegments, SegmentClassesReport, segment_classes};
+use crate::shape_split::{ShapeSplitOptions, ShapeSplitReport, split_by_shape};
 
 /// Whether instance extents are measured and classes regrouped by them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -346,6 +350,9 @@ pub struct ExtentOptions {
     /// Step 10: copies of the classes found by their members' depth images
     /// ([`crate::copies`]).
     pub copies: CopiesOptions,
+    /// Step 11: classes of free-standing blocks split by their shapes
+    /// ([`crate::shape_split`]).
+    pub shapes: ShapeSplitOptions,
 }
 
 impl Default for ExtentOptions {
@@ -374,6 +381,7 @@ impl Default for ExtentOptions {
             content: ContentOptions::default(),
             aligned: AlignedOptions::default(),
             copies: CopiesOptions::default(),
+            shapes: ShapeSplitOptions::default(),
         }
     }
 }
@@ -405,6 +413,8 @@ pub struct ExtentReport {
     pub aligned: AlignedReport,
     /// What step 10 did ([`crate::copies`]).
     pub copies: CopiesReport,
+    /// What step 11 did ([`crate::shape_split`]).
+    pub shapes: ShapeSplitReport,
 }
 
 impl Segments {
@@ -979,6 +989,15 @@ pub fn regroup(
         io.min_instance_features,
         &o.aligned,
         &o.copies,
+    );
+    report.shapes = split_by_shape(
+        &mut classes,
+        &pre.points,
+        &seg.of_point,
+        &hash,
+        o.aligned.flatness,
+        o.shape_tolerance * eps,
+        &o.shapes,
     );
     // Stable: the co-occurrence classes keep their order among classes of equal size.
     classes.sort_by_key(|c| std::cmp::Reverse(c.instances.len()));

@@ -49,6 +49,7 @@ pub mod refine;
 pub mod rigid_icp;
 pub mod scenes;
 pub mod segment_classes;
+pub mod shape_split;
 
 pub use detection::{DetectedClass, DetectedInstance, DetectionResult};
 pub use error::{DetectError, Result};

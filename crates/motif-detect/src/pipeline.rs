@@ -215,6 +215,9 @@ impl DetectOptions {
         if let Err((name, message)) = self.extent.copies.validate() {
             return bad(name, message);
         }
+        if let Err((name, message)) = self.extent.shapes.validate() {
+            return bad(name, message);
+        }
         if al.scale_rank == 0 {
             return bad("extent.aligned.scale_rank", "must be at least 1, got 0".to_string());
         }

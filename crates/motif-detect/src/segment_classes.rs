@@ -214,7 +214,7 @@ pub const SHAPE_STARTS: usize = 2;
 pub const SHAPE_ICP_ITERATIONS: usize = 8;
 
 /// A long candidate prepared for the shape comparison.
-struct Shape {
+pub(crate) struct Shape {
     /// Source-side sample of the segment's points.
     sample: Vec<Point3>,
     /// All of its points, and their tree, as a target.
@@ -228,7 +228,7 @@ struct Shape {
 }
 
 impl Shape {
-    fn new(points: &[Point3], frame: &Mat4) -> Option<Shape> {
+    pub(crate) fn new(points: &[Point3], frame: &Mat4) -> Option<Shape> {
         let tree = KdTree::new(points).ok()?;
         let step = points.len().div_ceil(SHAPE_SAMPLE).max(1);
         let sample = points.iter().step_by(step).copied().collect();
@@ -313,6 +313,27 @@ fn coverage(
     best
 }
 
+/// The similarity of every two shapes, in parallel over the pairs: the mean of the two
+/// directions' [`coverage`] at tolerance `tol`, 0 when either is `None`. Row-major `n × n`,
+/// filled above the diagonal only (`[a * n + b]` for a < b).
+pub(crate) fn similarities(shapes: &[Option<Shape>], tol: f64) -> Vec<f64> {
+    let n = shapes.len();
+    (0..n * n)
+        .into_par_iter()
+        .map_init(
+            || (Vec::new(), (Vec::new(), Vec::new())),
+            |(moved, pairs), ab| {
+                let (a, b) = (ab / n, ab % n);
+                if a >= b {
+                    return 0.0;
+                }
+                let (Some(sa), Some(sb)) = (&shapes[a], &shapes[b]) else { return 0.0 };
+                0.5 * (coverage(sa, sb, tol, moved, pairs) + coverage(sb, sa, tol, moved, pairs))
+            },
+        )
+        .collect()
+}
+
 /// `out` = `r` (p − `from`) + `to` for every p of `points`.
 fn place(points: &[Point3], r: &Matrix3<f64>, from: &Vector3<f64>, to: &Vector3<f64>, out: &mut Vec<Point3>) {
     out.clear();
@@ -328,7 +349,7 @@ fn place(points: &[Point3], r: &Matrix3<f64>, from: &Vector3<f64>, to: &Vector3<
 /// points' outline only, not on how they are spread). Each axis is turned towards the
 /// side where the points reach further from the centroid, the third completes a right-handed
 /// frame; so the frame follows the points under a rigid motion.
-fn principal_frame(points: &[Point3]) -> Option<(Mat4, [f64; 3])> {
+pub(crate) fn principal_frame(points: &[Point3]) -> Option<(Mat4, [f64; 3])> {
     let n = points.len();
     if n < 3 {
         return None;
@@ -503,23 +524,8 @@ pub(crate) fn segment_classes(
                 Shape::new(&pts, &c.frame)
             })
             .collect();
-        let tol = o.shape_tolerance * eps;
+        let similarity = similarities(&shapes, o.shape_tolerance * eps);
         let n = long.len();
-        // Symmetric: the mean of the two directions' coverages.
-        let similarity: Vec<f64> = (0..n * n)
-            .into_par_iter()
-            .map_init(
-                || (Vec::new(), (Vec::new(), Vec::new())),
-                |(moved, pairs), ab| {
-                    let (a, b) = (ab / n, ab % n);
-                    if a >= b {
-                        return 0.0;
-                    }
-                    let (Some(sa), Some(sb)) = (&shapes[a], &shapes[b]) else { return 0.0 };
-                    0.5 * (coverage(sa, sb, tol, moved, pairs) + coverage(sb, sa, tol, moved, pairs))
-                },
-            )
-            .collect();
         let sim = |a: usize, b: usize| if a < b { similarity[a * n + b] } else { similarity[b * n + a] };
         let shape_groups: Vec<Vec<usize>> =
             average_linkage_by(n, |a, b| 1.0 - sim(a, b), 1.0 - o.shape_similarity)

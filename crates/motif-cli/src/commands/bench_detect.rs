@@ -111,11 +111,13 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         o.extent.content.enabled = !a.no_content;
         o.extent.aligned.enabled = !a.no_aligned;
         o.extent.copies.enabled = !a.no_aligned && !a.no_copies;
+        o.extent.shapes.enabled = !a.no_shape_split;
         o.extent.aligned.grouping = a.aligned_grouping.into();
         o
     };
     super::detect::validate_options(&options(Method::EmSc, g.seed))?;
-    check_outputs(&[a.plot.as_deref(), a.json.json.as_deref()], &[], g.force)?;
+    let parts: Vec<&std::path::Path> = a.parts.iter().map(|p| p.as_path()).collect();
+    check_outputs(&[a.plot.as_deref(), a.json.json.as_deref()], &parts, g.force)?;
     crate::output::check_output_formats(&[(a.plot.as_deref(), crate::output::OutputKind::Png)])?;
     let bar = Bar::new(g.quiet);
     let eval = EvalOptions::default();
@@ -130,7 +132,13 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         let mut st = Stages::default();
         for k in 0..a.scenes {
             let seed = g.seed.wrapping_add(k as u64);
-            let so = SceneOptions { difficulty, points: a.points, seed, ..Default::default() };
+            let so = SceneOptions {
+                difficulty,
+                points: a.points,
+                seed,
+                parts: a.parts.clone(),
+                ..Default::default()
+            };
             let scene = bar.spin(&format!("{dname} scene {}", k + 1), || generate_scene(kind, &so))?;
             let gt = scene.ground_truth.clone();
             for (m, method) in [(0, Method::EmSc), (1, Method::Sc)] {
@@ -225,6 +233,10 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             },
             eval.tau
         );
+        if !a.parts.is_empty() {
+            let names: Vec<String> = a.parts.iter().map(|p| p.display().to_string()).collect();
+            println!("parts: {}", names.join(", "));
+        }
         println!(
             "{:<8} {:<24} {:>6} {:>6} {:>6} {:>7} {:>8} {:>9}",
             "level", "method", "P", "R", "F", "F s.e.", "F τ=0.5", "median s"
@@ -288,6 +300,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         &a.json.json,
         &serde_json::json!({ "rows": rows, "em_lead": leads, "stages": stages, "epsilon": a.epsilon,
             "min_support": a.min_support, "peak_share": a.peak_share, "points": a.points,
+            "kind": a.kind, "parts": a.parts,
             "regroup": a.regroup == RegroupArg::Extent,
             "repeated_segments": match a.repeated_segments {
                 RepeatedSegmentsArg::Classes => "classes",
@@ -295,6 +308,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 RepeatedSegmentsArg::None => "none",
             },
             "content": !a.no_content, "aligned": !a.no_aligned,
+            "copies": !a.no_aligned && !a.no_copies, "shape_split": !a.no_shape_split,
             "aligned_grouping": if a.aligned_grouping == AlignedGroupingArg::Communities { "communities" } else { "reassign" } }),
     )
 }

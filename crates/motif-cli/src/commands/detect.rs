@@ -96,6 +96,7 @@ pub fn options(a: &DetectArgs, g: &GlobalArgs) -> DetectOptions {
     o.extent.content.enabled = !a.no_content;
     o.extent.aligned.enabled = !a.no_aligned;
     o.extent.copies.enabled = !a.no_aligned && !a.no_copies;
+    o.extent.shapes.enabled = !a.no_shape_split;
     o.extent.aligned.grouping = a.aligned_grouping.into();
     o.extent.fit_trim = a.fit_trim;
     o
