@@ -428,17 +428,19 @@ mod tests {
         out
     }
 
-    /// One class holding the blocks `kinds` (true: a crate, false: a drum), each turned about
-    /// the up axis, scaled by up to 4% and placed 3 m apart; the points, their segments (none
-    /// on support) and the class.
-    fn scene(kinds: &[bool]) -> (Vec<Point3>, Vec<Option<u32>>, Vec<Class>) {
+    /// The scale of block `k`: within 4% of 1.
+    fn scale_of(k: usize) -> f64 {
+        1.0 + 0.04 * ((k * 7 % 5) as f64 / 2.0 - 1.0)
+    }
+
+    /// One class holding `blocks` (points around the origin), block k turned about the up axis
+    /// by `turn[0]` k + `turn[1]` radians and moved 3k m along x: the points, their segments
+    /// (none on support) and the class.
+    fn placed(blocks: &[Vec<Point3>], turn: [f64; 2]) -> (Vec<Point3>, Vec<Option<u32>>, Vec<Class>) {
         let mut points = Vec::new();
         let mut instances = Vec::new();
-        for (k, &is_crate) in kinds.iter().enumerate() {
-            let s = 1.0 + 0.04 * ((k * 7 % 5) as f64 / 2.0 - 1.0);
-            let block =
-                if is_crate { crate_points([1.2 * s, 0.8, 0.6 * s]) } else { drum_points(0.45 * s, 1.0) };
-            let (sin, cos) = (0.7 * k as f64 + 0.3).sin_cos();
+        for (k, block) in blocks.iter().enumerate() {
+            let (sin, cos) = (turn[0] * k as f64 + turn[1]).sin_cos();
             let at = 3.0 * k as f64;
             let start = points.len();
             points
@@ -465,6 +467,20 @@ mod tests {
         let class = Class { words: vec![0], centre_word: 0, extent, instances, cluster: 0 };
         let segments = vec![Some(0); points.len()];
         (points, segments, vec![class])
+    }
+
+    /// One class holding the blocks `kinds` (true: a crate, false: a drum), each scaled by up to
+    /// 4% ([`placed`]).
+    fn scene(kinds: &[bool]) -> (Vec<Point3>, Vec<Option<u32>>, Vec<Class>) {
+        let blocks: Vec<Vec<Point3>> = kinds
+            .iter()
+            .enumerate()
+            .map(|(k, &is_crate)| {
+                let s = scale_of(k);
+                if is_crate { crate_points([1.2 * s, 0.8, 0.6 * s]) } else { drum_points(0.45 * s, 1.0) }
+            })
+            .collect();
+        placed(&blocks, [0.7, 0.3])
     }
 
     fn run(kinds: &[bool], o: &ShapeSplitOptions) -> (Vec<Class>, ShapeSplitReport) {
@@ -545,40 +561,15 @@ mod tests {
         // About two thousand points each, as a block of a 300k-point scene holds.
         let (bunny, cow) = (part_points(&bunny, 18), part_points(&cow, 1));
         let kinds = [true, false, false, true, true, false, true, false];
-        let mut points = Vec::new();
-        let mut instances = Vec::new();
-        for (k, &is_bunny) in kinds.iter().enumerate() {
-            let s = 1.0 + 0.04 * ((k * 7 % 5) as f64 / 2.0 - 1.0);
-            let (sin, cos) = (0.9 * k as f64 + 0.2).sin_cos();
-            let at = 3.0 * k as f64;
-            let start = points.len();
-            let block = if is_bunny { &bunny } else { &cow };
-            points.extend(block.iter().map(|p| {
-                let p = [s * p[0], s * p[1], s * p[2]];
-                [cos * p[0] + sin * p[2] + at, p[1], -sin * p[0] + cos * p[2]]
-            }));
-            let mut b = Aabb { min: [f64::INFINITY; 3], max: [f64::NEG_INFINITY; 3] };
-            for p in &points[start..] {
-                for a in 0..3 {
-                    b.min[a] = b.min[a].min(p[a] - 0.5 * H);
-                    b.max[a] = b.max[a].max(p[a] + 0.5 * H);
-                }
-            }
-            let (footprint, turn, flip) = (None, 0.0, 0);
-            instances.push(Instance {
-                centre: start,
-                flip,
-                features: Vec::new(),
-                links: Vec::new(),
-                frame: IDENTITY4,
-                aabb: b,
-                footprint,
-                turn,
-            });
-        }
-        let extent = median_box_size(&instances);
-        let mut classes = vec![Class { words: vec![0], centre_word: 0, extent, instances, cluster: 0 }];
-        let segments = vec![Some(0); points.len()];
+        let blocks: Vec<Vec<Point3>> = kinds
+            .iter()
+            .enumerate()
+            .map(|(k, &is_bunny)| {
+                let s = scale_of(k);
+                (if is_bunny { &bunny } else { &cow }).iter().map(|p| p.map(|v| s * v)).collect()
+            })
+            .collect();
+        let (points, segments, mut classes) = placed(&blocks, [0.9, 0.2]);
         let hash = SpatialHash::new(&points, 8.0 * H);
         // Every box stands free (flatness 0.2): a cow is long and narrow. The tolerance is 2ε of
         // the natural benchmark scenes (ε = 0.0012 × their diagonal, about 3 cm).
