@@ -1,7 +1,8 @@
 //! Communities of a small weighted graph by modularity (Louvain; Blondel, Guillaume, Lambiotte
 //! and Lefebvre 2008), deterministic.
 //!
-//! Used by [`crate::aligned`] to group instances by their images. The graphs there have one node
+//! Used by [`crate::aligned`] to group instances by their images, and by
+//! [`crate::shape_split`] to group free-standing instances by their shapes. The graphs there have one node
 //! per instance (tens to a few hundred) and an edge between almost every pair, so the graph is a
 //! dense symmetric matrix and every step is a row scan. No maintained, field-standard Rust crate
 //! does this (graph crates with a Louvain are young or unmaintained, and all take sparse edge
@@ -61,8 +62,9 @@ pub fn louvain(w: &[f64], n: usize, resolution: f64) -> Vec<usize> {
 /// (row-major): w_ab = exp(−d_ab² / (s_a s_b)) for the pairs `linked(a, b)` (symmetric, never a
 /// node with itself), 0 for the others, where a node's scale s is its distance to its
 /// `rank`-th nearest linked node (the farthest, when it has fewer). Each node is measured
-/// against its own neighbourhood, so that a tight group and a loose one both stand out. Two
-/// nodes at scale 0 (exact copies) are joined with weight 1 when their distance is 0.
+/// against its own neighbourhood, so that a tight group and a loose one both stand out. When
+/// either node of a pair has scale 0 (exact copies among its nearest), the pair's weight is 1 at
+/// distance 0 and 0 otherwise.
 pub fn self_tuning_weights(
     d: &[f64],
     m: usize,

@@ -84,7 +84,7 @@
 //!     plane by its members' depth images, and copies that no instance covers are added
 //!     ([`crate::copies`]): a style whose other copies a class absorbed is left too few copies
 //!     for the co-occurrence analysis to find.
-//! 11. **Shapes.** A class of four or more free-standing instances is split when their
+//! 11. **Shapes.** A class of six or more free-standing instances is split when their
 //!     shapes, compared by alignment as in step 5, form communities ([`crate::shape_split`]):
 //!     smooth blocks of different shapes can share one class of co-occurring features.
 //!

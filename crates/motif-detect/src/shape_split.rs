@@ -13,7 +13,8 @@
 //!
 //! What it does, per class with at least [`ShapeSplitOptions::min_instances`] free-standing
 //! instances (a box whose smallest side is more than
-//! [`crate::aligned::AlignedOptions::flatness`] times its middle side):
+//! [`crate::aligned::AlignedOptions::flatness`] times its middle side), at least that many of
+//! them with points enough to compare:
 //! 1. **Points.** Each free-standing instance's resampled points inside its box, off the support
 //!    planes of [`crate::extent::segment`] (the ground, a wall): the block alone. An instance
 //!    with fewer than [`ShapeSplitOptions::min_points`] is not compared.
@@ -21,7 +22,9 @@
 //!    [`crate::segment_classes`] step 5: one aligned onto the other by principal frames, turns
 //!    about the first axis and ICP, the share of its points within
 //!    [`crate::extent::ExtentOptions::shape_tolerance`] of the other's, averaged over both
-//!    directions. Free of any rigid motion of the input.
+//!    directions. The alignment is free of any rigid motion of the input; the boxes are not
+//!    (they are axis-aligned, as everywhere in the stage), so which instances count as
+//!    free-standing, and what their boxes hold, follow the world axes.
 //! 3. **Communities.** Distances 1 − similarity, weighted by the self-tuning affinity
 //!    ([`crate::communities::self_tuning_weights`], rank [`ShapeSplitOptions::scale_rank`]),
 //!    grouped into the communities of highest modularity ([`crate::communities::louvain`],
@@ -258,7 +261,7 @@ pub(crate) fn split_by_shape(
         if groups.len() < 2 {
             continue;
         }
-        // The largest group stays (ties: the lower group, in order of lowest member).
+        // The largest group stays (ties: the first).
         let host = (0..groups.len())
             .max_by(|&a, &b| groups[a].len().cmp(&groups[b].len()).then(b.cmp(&a)))
             .expect("two groups or more");
@@ -299,8 +302,8 @@ pub(crate) fn split_by_shape(
 /// 1 − `sim`, each split again the same way, as long as a partition has two communities of
 /// [`ShapeSplitOptions::min_group`] or more and modularity at least
 /// [`ShapeSplitOptions::min_modularity`]. The members of smaller communities join the group
-/// whose members they resemble most. Groups come in order of their lowest member's position in
-/// `nodes`.
+/// whose members they resemble most (compared in turn, so one may join a group an earlier one
+/// joined). The order of the groups is deterministic.
 fn partition(nodes: &[usize], sim: &impl Fn(usize, usize) -> f64, o: &ShapeSplitOptions) -> Vec<Vec<usize>> {
     let n = nodes.len();
     if n < 2 * o.min_group {
