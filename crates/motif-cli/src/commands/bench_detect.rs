@@ -14,7 +14,7 @@ use std::time::Instant;
 use motif_detect::pipeline::Method;
 use motif_detect::preprocess::Epsilon;
 use motif_detect::rigid_icp::{RigidIcpOptions, rigid_icp};
-use motif_detect::scenes::{Difficulty, SceneKind, SceneOptions, generate_scene};
+use motif_detect::scenes::{Difficulty, SceneKind, SceneOptions, generate_scene_with_parts, load_scene_part};
 use motif_detect::{
     AnnotatedClassTotals, DetectOptions, DetectionResult, EvalOptions, evaluate_many, plot_pr_and_stress,
 };
@@ -119,6 +119,9 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let parts: Vec<&std::path::Path> = a.parts.iter().map(|p| p.as_path()).collect();
     check_outputs(&[a.plot.as_deref(), a.json.json.as_deref()], &parts, g.force)?;
     crate::output::check_output_formats(&[(a.plot.as_deref(), crate::output::OutputKind::Png)])?;
+    // The parts are read once, before any scene: a file that is not a usable mesh stops the
+    // bench at once, naming it.
+    let part_meshes = a.parts.iter().map(|p| load_scene_part(p)).collect::<Result<Vec<_>, _>>()?;
     let bar = Bar::new(g.quiet);
     let eval = EvalOptions::default();
     let mut rows = Vec::new();
@@ -132,14 +135,10 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         let mut st = Stages::default();
         for k in 0..a.scenes {
             let seed = g.seed.wrapping_add(k as u64);
-            let so = SceneOptions {
-                difficulty,
-                points: a.points,
-                seed,
-                parts: a.parts.clone(),
-                ..Default::default()
-            };
-            let scene = bar.spin(&format!("{dname} scene {}", k + 1), || generate_scene(kind, &so))?;
+            let so = SceneOptions { difficulty, points: a.points, seed, ..Default::default() };
+            let scene = bar.spin(&format!("{dname} scene {}", k + 1), || {
+                generate_scene_with_parts(kind, &so, &part_meshes)
+            })?;
             let gt = scene.ground_truth.clone();
             for (m, method) in [(0, Method::EmSc), (1, Method::Sc)] {
                 let o = options(method, seed);
