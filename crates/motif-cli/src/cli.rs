@@ -744,12 +744,16 @@ pub struct BenchDetectArgs {
     /// co-occurrence analysis). No effect with `--no-aligned` or `--regroup none`.
     #[arg(long)]
     pub no_copies: bool,
-    /// Do not split classes of free-standing blocks by their shapes (the extent stage's step
-    /// after the copies, motif_detect::shape_split; not in the thesis, on by default: smooth
-    /// blocks of different shapes can share one class of co-occurring features). No effect with
-    /// `--regroup none`.
+    /// Do not group free-standing blocks by their shapes (the extent stage's step after the
+    /// copies, motif_detect::shape_split; not in the thesis, on by default: smooth blocks of
+    /// different shapes can share one class of co-occurring features, and one shape can be
+    /// found as two classes). No effect with `--regroup none`.
     #[arg(long)]
     pub no_shape_split: bool,
+    /// Group the free-standing blocks by shape within each class only (the step's first
+    /// version: it splits classes but never joins or corrects them), instead of across classes.
+    #[arg(long, conflicts_with = "no_shape_split")]
+    pub shape_split_per_class: bool,
     /// Also print, per level and annotated class, how many instances EM + SC located (some
     /// detected box matches) and how many the recall credited, summed over the scenes, and the
     /// R and F that no grouping or pruning of its boxes can exceed (the JSON report always has
@@ -1025,12 +1029,16 @@ pub struct DetectArgs {
     /// co-occurrence analysis). No effect with `--no-aligned` or `--regroup none`.
     #[arg(long)]
     pub no_copies: bool,
-    /// Do not split classes of free-standing blocks by their shapes (the extent stage's step
-    /// after the copies, motif_detect::shape_split; not in the thesis, on by default: smooth
-    /// blocks of different shapes can share one class of co-occurring features). No effect with
-    /// `--regroup none`.
+    /// Do not group free-standing blocks by their shapes (the extent stage's step after the
+    /// copies, motif_detect::shape_split; not in the thesis, on by default: smooth blocks of
+    /// different shapes can share one class of co-occurring features, and one shape can be
+    /// found as two classes). No effect with `--regroup none`.
     #[arg(long)]
     pub no_shape_split: bool,
+    /// Group the free-standing blocks by shape within each class only (the step's first
+    /// version: it splits classes but never joins or corrects them), instead of across classes.
+    #[arg(long, conflicts_with = "no_shape_split")]
+    pub shape_split_per_class: bool,
     /// Keep the extent stage's boxes as grown instead of fitting each to the points it holds
     /// (a step of the stage, on by default: boxes padded around creases and grown to segments
     /// reach past the block; fitted, they overlap the true blocks more, F at τ = 0.5 rose from

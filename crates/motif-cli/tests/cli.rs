@@ -1282,6 +1282,7 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
         "0.002",
         "--aligned-grouping",
         "reassign",
+        "--shape-split-per-class",
         "-o",
         "r9.json",
         "--json",
@@ -1291,6 +1292,15 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
     assert!(o.status.success(), "{}", stderr(&o));
     let re = &read("r9.rep.json");
     assert_eq!(re["options"]["extent"]["aligned"]["grouping"], "reassign");
+    // Shapes are grouped across classes by default, class by class with `--shape-split-per-class`.
+    assert_eq!(def["options"]["extent"]["shapes"]["across_classes"], true);
+    assert_eq!(re["options"]["extent"]["shapes"]["across_classes"], false);
+    let o = motif(
+        &["detect", "s.ply", "--no-shape-split", "--shape-split-per-class", "-o", "r12.json"],
+        dir.path(),
+    );
+    assert!(!o.status.success() && stderr(&o).contains("--shape-split-per-class"), "{}", stderr(&o));
+    assert!(!dir.path().join("r12.json").exists());
     assert_eq!(re["report"]["extent"]["aligned"]["communities"], 0);
     assert!(re["report"]["extent"]["aligned"]["rounds"].as_u64().unwrap() > 0);
     let o = motif(&["detect", "s.ply", "--aligned-grouping", "sideways", "-o", "r10.json"], dir.path());

@@ -453,7 +453,7 @@ pub fn realign(
         Grouping::Communities => {
             let community = communities(&group, &d, &clash, o);
             report.communities = community.iter().max().map_or(0, |c| c + 1);
-            host(classes, &items, &community, &mut report)
+            host(classes, &items, &community, &mut report.new_classes)
         }
     };
     report.moved = label.iter().zip(&items).filter(|(l, it)| **l != it.0).count();
@@ -538,11 +538,11 @@ fn communities(group: &[Option<usize>], d: &[f64], clash: &[Vec<usize>], o: &Ali
 /// lower class); a community left without a host gets a new class, a copy of the class most of
 /// its instances came from (its words and cluster; ties: the lower). Returns each item's class
 /// (new classes are appended to `classes` empty, to be filled by [`apply_labels`]).
-fn host(
+pub(crate) fn host(
     classes: &mut Vec<Class>,
     items: &[(usize, usize)],
     community: &[usize],
-    report: &mut AlignedReport,
+    new_classes: &mut usize,
 ) -> Vec<usize> {
     let count = community.iter().max().map_or(0, |c| c + 1);
     let mut shared = std::collections::BTreeMap::<(usize, usize), usize>::new();
@@ -573,7 +573,7 @@ fn host(
             };
             classes.push(new);
             *slot = Some(classes.len() - 1);
-            report.new_classes += 1;
+            *new_classes += 1;
         }
     }
     community.iter().map(|&c| class_of[c].expect("every community has a class")).collect()

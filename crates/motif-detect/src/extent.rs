@@ -84,9 +84,10 @@
 //!     plane by its members' depth images, and copies that no instance covers are added
 //!     ([`crate::copies`]): a style whose other copies a class absorbed is left too few copies
 //!     for the co-occurrence analysis to find.
-//! 11. **Shapes.** A class of six or more free-standing instances is split when their
-//!     shapes, compared by alignment as in step 5, form communities ([`crate::shape_split`]):
-//!     smooth blocks of different shapes can share one class of co-occurring features.
+//! 11. **Shapes.** The free-standing instances of all classes are grouped again by their
+//!     shapes, compared by alignment as in step 5 ([`crate::shape_split`]): smooth blocks of
+//!     different shapes can share one class of co-occurring features, and one shape can be
+//!     found as two classes. An instance changes class only on clear evidence.
 //!
 //! # On by default
 //! [`Regroup::Extent`] is the default (`motif detect --regroup none` gives the thesis's output).
@@ -243,7 +244,7 @@ use crate::grid::SpatialHash;
 use crate::instances::{Class, Instance, InstanceOptions, overlaps_any};
 use crate::preprocess::{Feature, Preprocessed};
 use crate::segment_classes::{RepeatedSegments, SegmentClassesReport, segment_classes};
-use crate::shape_split::{ShapeSplitOptions, ShapeSplitReport, split_by_shape};
+use crate::shape_split::{ShapeInputs, ShapeSplitOptions, ShapeSplitReport, split_by_shape};
 
 /// Whether instance extents are measured and classes regrouped by them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -350,8 +351,7 @@ pub struct ExtentOptions {
     /// Step 10: copies of the classes found by their members' depth images
     /// ([`crate::copies`]).
     pub copies: CopiesOptions,
-    /// Step 11: classes of free-standing blocks split by their shapes
-    /// ([`crate::shape_split`]).
+    /// Step 11: free-standing blocks grouped again by their shapes ([`crate::shape_split`]).
     pub shapes: ShapeSplitOptions,
 }
 
@@ -990,15 +990,15 @@ pub fn regroup(
         &o.aligned,
         &o.copies,
     );
-    report.shapes = split_by_shape(
-        &mut classes,
-        &pre.points,
-        &seg.of_point,
-        &hash,
-        o.aligned.flatness,
-        o.shape_tolerance * eps,
-        &o.shapes,
-    );
+    let shape_inputs = ShapeInputs {
+        points: &pre.points,
+        segment_of: &seg.of_point,
+        hash: &hash,
+        flatness: o.aligned.flatness,
+        tolerance: o.shape_tolerance * eps,
+        merge_overlap,
+    };
+    report.shapes = split_by_shape(&mut classes, &shape_inputs, &o.shapes);
     // Stable: the co-occurrence classes keep their order among classes of equal size.
     classes.sort_by_key(|c| std::cmp::Reverse(c.instances.len()));
     (classes, report)

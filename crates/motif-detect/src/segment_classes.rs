@@ -313,25 +313,43 @@ fn coverage(
     best
 }
 
-/// The similarity of every two shapes, in parallel over the pairs: the mean of the two
-/// directions' [`coverage`] at tolerance `tol`, 0 when either is `None`. Row-major `n × n`,
-/// filled above the diagonal only (`[a * n + b]` for a < b).
-pub(crate) fn similarities(shapes: &[Option<Shape>], tol: f64) -> Vec<f64> {
-    let n = shapes.len();
-    (0..n * n)
-        .into_par_iter()
-        .map_init(
-            || (Vec::new(), (Vec::new(), Vec::new())),
-            |(moved, pairs), ab| {
-                let (a, b) = (ab / n, ab % n);
-                if a >= b {
-                    return 0.0;
-                }
-                let (Some(sa), Some(sb)) = (&shapes[a], &shapes[b]) else { return 0.0 };
-                0.5 * (coverage(sa, sb, tol, moved, pairs) + coverage(sb, sa, tol, moved, pairs))
-            },
-        )
-        .collect()
+/// The similarity of every two shapes: the mean of the two directions' [`coverage`] at
+/// tolerance `tol`, 0 when either is `None`, 1 between a shape and itself. Computed in
+/// parallel over the pairs a < b and mirrored.
+pub(crate) struct Similarities {
+    n: usize,
+    values: Vec<f64>,
+}
+
+impl Similarities {
+    pub(crate) fn new(shapes: &[Option<Shape>], tol: f64) -> Self {
+        let n = shapes.len();
+        let mut values: Vec<f64> = (0..n * n)
+            .into_par_iter()
+            .map_init(
+                || (Vec::new(), (Vec::new(), Vec::new())),
+                |(moved, pairs), ab| {
+                    let (a, b) = (ab / n, ab % n);
+                    if a >= b {
+                        return if a == b { 1.0 } else { 0.0 };
+                    }
+                    let (Some(sa), Some(sb)) = (&shapes[a], &shapes[b]) else { return 0.0 };
+                    0.5 * (coverage(sa, sb, tol, moved, pairs) + coverage(sb, sa, tol, moved, pairs))
+                },
+            )
+            .collect();
+        for a in 0..n {
+            for b in 0..a {
+                values[a * n + b] = values[b * n + a];
+            }
+        }
+        Self { n, values }
+    }
+
+    /// The similarity of shapes `a` and `b` (symmetric).
+    pub(crate) fn get(&self, a: usize, b: usize) -> f64 {
+        self.values[a * self.n + b]
+    }
 }
 
 /// `out` = `r` (p − `from`) + `to` for every p of `points`.
@@ -524,11 +542,9 @@ pub(crate) fn segment_classes(
                 Shape::new(&pts, &c.frame)
             })
             .collect();
-        let similarity = similarities(&shapes, o.shape_tolerance * eps);
-        let n = long.len();
-        let sim = |a: usize, b: usize| if a < b { similarity[a * n + b] } else { similarity[b * n + a] };
+        let similarity = Similarities::new(&shapes, o.shape_tolerance * eps);
         let shape_groups: Vec<Vec<usize>> =
-            average_linkage_by(n, |a, b| 1.0 - sim(a, b), 1.0 - o.shape_similarity)
+            average_linkage_by(long.len(), |a, b| 1.0 - similarity.get(a, b), 1.0 - o.shape_similarity)
                 .into_iter()
                 .filter(|g| g.len() >= min_instances)
                 .collect();

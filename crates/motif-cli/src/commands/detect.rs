@@ -97,6 +97,7 @@ pub fn options(a: &DetectArgs, g: &GlobalArgs) -> DetectOptions {
     o.extent.aligned.enabled = !a.no_aligned;
     o.extent.copies.enabled = !a.no_aligned && !a.no_copies;
     o.extent.shapes.enabled = !a.no_shape_split;
+    o.extent.shapes.across_classes = !a.shape_split_per_class;
     o.extent.aligned.grouping = a.aligned_grouping.into();
     o.extent.fit_trim = a.fit_trim;
     o
