@@ -48,7 +48,7 @@
 //!    boxes, form communities as readily as different blocks do, but they still cover each other
 //!    well.
 //! 5. **Hosted.** Each group is hosted by a class it shares instances with, one group per class,
-//!    the pairs sharing the most instances first ([`crate::aligned::host`], as the aligned step
+//!    the pairs sharing the most instances first (`aligned::host`, as the aligned step
 //!    hosts its communities); a group left without a host becomes a new class, a copy (words,
 //!    cluster) of the class most of its members came from.
 //! 6. **Moved only on clear evidence.** An instance leaves its class for its group's host only
@@ -60,7 +60,7 @@
 //!    test left their class of cars for the balconies' (hard streets of seeds 1–12, F 0.694 →
 //!    0.671). A new class that would keep fewer than two members is not made, and they stay. Then each class keeps one
 //!    instance per block (a newcomer that repeats a block the class holds is dropped), and
-//!    classes left with fewer than two instances go ([`crate::content::apply_labels`]).
+//!    classes left with fewer than two instances go (`content::apply_labels`).
 //!
 //! With [`ShapeSplitOptions::across_classes`] off (`--shape-split-per-class`, the step's first
 //! version) steps 1–4 run within each class that has at least
