@@ -738,6 +738,12 @@ pub struct BenchDetectArgs {
     /// members it resembles most. No effect with `--no-aligned` or `--regroup none`.
     #[arg(long, value_enum, default_value_t = AlignedGroupingArg::Communities)]
     pub aligned_grouping: AlignedGroupingArg,
+    /// Compare the aligned step's depth images also where the box of a block that stands in
+    /// front (a balcony, a car: a box the step does not picture) covers them, instead of
+    /// leaving those cells out (motif_detect::aligned, "What stands in front"). No effect with
+    /// `--no-aligned` or `--regroup none`.
+    #[arg(long)]
+    pub no_aligned_mask: bool,
     /// Do not search each class's plane for copies that no instance covers, by its members'
     /// depth images (the extent stage's last step, motif_detect::copies; not in the thesis, on
     /// by default: a style whose other copies a class absorbed keeps too few copies for the
@@ -1023,6 +1029,12 @@ pub struct DetectArgs {
     /// members it resembles most. No effect with `--no-aligned` or `--regroup none`.
     #[arg(long, value_enum, default_value_t = AlignedGroupingArg::Communities)]
     pub aligned_grouping: AlignedGroupingArg,
+    /// Compare the aligned step's depth images also where the box of a block that stands in
+    /// front (a balcony, a car: a box the step does not picture) covers them, instead of
+    /// leaving those cells out (motif_detect::aligned, "What stands in front"). No effect with
+    /// `--no-aligned` or `--regroup none`.
+    #[arg(long)]
+    pub no_aligned_mask: bool,
     /// Do not search each class's plane for copies that no instance covers, by its members'
     /// depth images (the extent stage's last step, motif_detect::copies; not in the thesis, on
     /// by default: a style whose other copies a class absorbed keeps too few copies for the

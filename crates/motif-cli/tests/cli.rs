@@ -1322,6 +1322,7 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
         "0.002",
         "--no-copies",
         "--no-shape-split",
+        "--no-aligned-mask",
         "-o",
         "r11.json",
         "--json",
@@ -1334,6 +1335,9 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
     assert_eq!(nc["report"]["extent"]["copies"]["nodes"], 0);
     assert_eq!(nc["options"]["extent"]["shapes"]["enabled"], false);
     assert_eq!(nc["report"]["extent"]["shapes"]["classes"], 0);
+    // Deep boxes are masked out of the aligned step's images unless `--no-aligned-mask`.
+    assert_eq!(def["options"]["extent"]["aligned"]["mask_deep"], true);
+    assert_eq!(nc["options"]["extent"]["aligned"]["mask_deep"], false);
     for key in ["incoherent_classes", "outliers"] {
         assert!(read("r2.rep.json")["report"]["extent"]["content"][key].is_u64(), "{key}");
     }

@@ -99,6 +99,7 @@ pub fn options(a: &DetectArgs, g: &GlobalArgs) -> DetectOptions {
     o.extent.shapes.enabled = !a.no_shape_split;
     o.extent.shapes.across_classes = !a.shape_split_per_class;
     o.extent.aligned.grouping = a.aligned_grouping.into();
+    o.extent.aligned.mask_deep = !a.no_aligned_mask;
     o.extent.fit_trim = a.fit_trim;
     o
 }
