@@ -570,17 +570,18 @@ fn mask_deep_boxes(
 ) {
     let c = inst.aabb.center();
     let [a0, a1] = plane_axes(t);
-    let reaches = |q: &Aabb| {
-        q.min[t] <= c[t] + slab
-            && q.max[t] >= c[t] - slab
-            && q.min[a0] <= c[a0] + half[0]
-            && q.max[a0] >= c[a0] - half[0]
-            && q.min[a1] <= c[a1] + half[1]
-            && q.max[a1] >= c[a1] - half[1]
-    };
+    // The region the image pictures.
+    let (mut region, mut reach) = (Aabb { min: c, max: c }, [0.0; 3]);
+    (reach[a0], reach[a1], reach[t]) = (half[0], half[1], slab);
+    for a in 0..3 {
+        region.min[a] -= reach[a];
+        region.max[a] += reach[a];
+    }
     let centre = |k: usize, a: usize, h: f64| c[a] - h + (k as f64 + 0.5) * 2.0 * h / n as f64;
     for q in deep {
-        if !reaches(&q.aabb) || overlaps_any(inst, std::slice::from_ref(*q), merge_overlap) {
+        if q.aabb.intersection(&region).is_none()
+            || overlaps_any(inst, std::slice::from_ref(*q), merge_overlap)
+        {
             continue;
         }
         for i in 0..n {
@@ -717,7 +718,6 @@ pub(crate) mod tests {
     use super::*;
     use crate::content::tests::{H, Window, class_of, opening, styled_scene};
     use crate::grid::SpatialHash;
-    use motif_core::geometry::Aabb;
 
     /// An image whose only relief is a `w × w` square of depth 1 with its corner at (`x`, `y`).
     pub(crate) fn square(n: usize, x: usize, y: usize, w: usize) -> Image {
