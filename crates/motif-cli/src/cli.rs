@@ -744,6 +744,12 @@ pub struct BenchDetectArgs {
     /// `--no-aligned` or `--regroup none`.
     #[arg(long)]
     pub no_aligned_mask: bool,
+    /// Measure every unexplained segment along its principal axes when grouping segments by
+    /// size, also one that stands on a support plane (the ground, the wall), instead of by its
+    /// height above the plane and its footprint on it (motif_detect::segment_classes, "On a
+    /// support plane"). No effect with `--regroup none` or `--repeated-segments none`.
+    #[arg(long)]
+    pub no_segment_support: bool,
     /// Do not search each class's plane for copies that no instance covers, by its members'
     /// depth images (the extent stage's last step, motif_detect::copies; not in the thesis, on
     /// by default: a style whose other copies a class absorbed keeps too few copies for the
@@ -1035,6 +1041,12 @@ pub struct DetectArgs {
     /// `--no-aligned` or `--regroup none`.
     #[arg(long)]
     pub no_aligned_mask: bool,
+    /// Measure every unexplained segment along its principal axes when grouping segments by
+    /// size, also one that stands on a support plane (the ground, the wall), instead of by its
+    /// height above the plane and its footprint on it (motif_detect::segment_classes, "On a
+    /// support plane"). No effect with `--regroup none` or `--repeated-segments none`.
+    #[arg(long)]
+    pub no_segment_support: bool,
     /// Do not search each class's plane for copies that no instance covers, by its members'
     /// depth images (the extent stage's last step, motif_detect::copies; not in the thesis, on
     /// by default: a style whose other copies a class absorbed keeps too few copies for the

@@ -1323,6 +1323,7 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
         "--no-copies",
         "--no-shape-split",
         "--no-aligned-mask",
+        "--no-segment-support",
         "-o",
         "r11.json",
         "--json",
@@ -1338,6 +1339,9 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
     // Deep boxes are masked out of the aligned step's images unless `--no-aligned-mask`.
     assert_eq!(def["options"]["extent"]["aligned"]["mask_deep"], true);
     assert_eq!(nc["options"]["extent"]["aligned"]["mask_deep"], false);
+    // Segments standing on a support plane are measured on it unless `--no-segment-support`.
+    assert_eq!(def["options"]["extent"]["segment_support"], true);
+    assert_eq!(nc["options"]["extent"]["segment_support"], false);
     for key in ["incoherent_classes", "outliers"] {
         assert!(read("r2.rep.json")["report"]["extent"]["content"][key].is_u64(), "{key}");
     }

@@ -317,6 +317,10 @@ pub struct ExtentOptions {
     /// variation once measured along their principal axes, less than two kinds of street
     /// furniture). Default 0.2.
     pub segment_distance: f64,
+    /// [`crate::segment_classes`]: a candidate that stands on a support plane is measured on it
+    /// (its height above the plane, and the smallest rectangle around its footprint) instead of
+    /// along its principal axes. Default true.
+    pub segment_support: bool,
     /// [`crate::segment_classes`]: a group of segments needs at least this many members to be a
     /// class. Three, not two: two objects of one size happen by chance among tens of segments.
     /// Default 3.
@@ -371,6 +375,7 @@ impl Default for ExtentOptions {
             turned_area: 0.95,
             repeated_segments: RepeatedSegments::Classes,
             segment_distance: 0.2,
+            segment_support: true,
             segment_min_instances: 3,
             segment_contrast: 0.75,
             shape_length: 64.0,
@@ -451,6 +456,11 @@ pub struct Segments {
     pub support_points: usize,
     /// The link radius used, in ε.
     pub link_radius: f64,
+    /// The support planes found: a point on each (the centroid of its members) and its unit
+    /// normal, turned to the side its points' normals face.
+    pub planes: Vec<(Point3, Point3)>,
+    /// Support plane of each resampled point (an index into `planes`), `u32::MAX` off support.
+    pub plane_of: Vec<u32>,
 }
 
 /// The 90th percentile of the resampled points' nearest-neighbour distances on a dense input,
@@ -518,6 +528,8 @@ pub fn segment(
         (0..n).map(|i| ((kappa[i].abs() / step).floor().min(u64::MAX as f64) as u64, i as u32)).collect();
     seeds.sort_unstable();
     let mut found: Vec<u32> = Vec::new();
+    let mut planes: Vec<(Point3, Point3)> = Vec::new();
+    let mut plane_of: Vec<u32> = vec![u32::MAX; n];
     for (_, s) in seeds {
         let s = s as usize;
         if region[s] != u32::MAX {
@@ -586,7 +598,20 @@ pub fn segment(
         if d2 > limit2 {
             for &i in &queue {
                 support[i as usize] = true;
+                plane_of[i as usize] = planes.len() as u32;
             }
+            // The plane refitted to all its members.
+            let m = queue.len() as f64;
+            let mean = sum / m;
+            let cov = sum2 / m - mean * mean.transpose();
+            let eig = nalgebra::SymmetricEigen::new(cov);
+            let k = (0..3).fold(0, |b, k| if eig.eigenvalues[k] < eig.eigenvalues[b] { k } else { b });
+            let v = eig.eigenvectors.column(k);
+            let sign = if dot([v[0], v[1], v[2]], plane_n) < 0.0 { -1.0 } else { 1.0 };
+            planes.push((
+                [ps[0] + mean[0], ps[1] + mean[1], ps[2] + mean[2]],
+                [sign * v[0], sign * v[1], sign * v[2]],
+            ));
         }
         next += 1;
     }
@@ -629,7 +654,14 @@ pub fn segment(
         }
     }
     let boxes = lo.into_iter().zip(hi).map(|(min, max)| Aabb { min, max }).collect();
-    Segments { of_point, boxes, support_points: support.iter().filter(|&&s| s).count(), link_radius: link }
+    Segments {
+        of_point,
+        boxes,
+        support_points: support.iter().filter(|&&s| s).count(),
+        link_radius: link,
+        planes,
+        plane_of,
+    }
 }
 
 /// Step 3: grows `inst`'s box to its main segment; the segment when it grew.
@@ -970,7 +1002,7 @@ pub fn regroup(
     report.splits = splits;
     report.merges = merges;
     let next_cluster = classes.iter().map(|c| c.cluster.saturating_add(1)).max().unwrap_or(0);
-    let (found, r) = segment_classes(&classes, &seg, &members, pre, features, io, o, next_cluster);
+    let (found, r) = segment_classes(&classes, &seg, &members, pre, &hash, features, io, o, next_cluster);
     report.segment_classes = r;
     classes.extend(found);
     if o.fit_boxes {

@@ -115,6 +115,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         o.extent.shapes.across_classes = !a.shape_split_per_class;
         o.extent.aligned.grouping = a.aligned_grouping.into();
         o.extent.aligned.mask_deep = !a.no_aligned_mask;
+        o.extent.segment_support = !a.no_segment_support;
         o
     };
     super::detect::validate_options(&options(Method::EmSc, g.seed))?;
@@ -309,7 +310,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 RepeatedSegmentsArg::None => "none",
             },
             "content": !a.no_content, "aligned": !a.no_aligned,
-            "copies": !a.no_aligned && !a.no_copies, "shape_split": !a.no_shape_split, "shape_split_across_classes": !a.no_shape_split && !a.shape_split_per_class, "aligned_mask": !a.no_aligned && !a.no_aligned_mask,
+            "copies": !a.no_aligned && !a.no_copies, "shape_split": !a.no_shape_split, "shape_split_across_classes": !a.no_shape_split && !a.shape_split_per_class, "aligned_mask": !a.no_aligned && !a.no_aligned_mask, "segment_support": !a.no_segment_support,
             "aligned_grouping": if a.aligned_grouping == AlignedGroupingArg::Communities { "communities" } else { "reassign" } }),
     )
 }

@@ -100,6 +100,7 @@ pub fn options(a: &DetectArgs, g: &GlobalArgs) -> DetectOptions {
     o.extent.shapes.across_classes = !a.shape_split_per_class;
     o.extent.aligned.grouping = a.aligned_grouping.into();
     o.extent.aligned.mask_deep = !a.no_aligned_mask;
+    o.extent.segment_support = !a.no_segment_support;
     o.extent.fit_trim = a.fit_trim;
     o
 }
