@@ -534,7 +534,8 @@ fn contact_plane(
 /// extents along its axes: the first axis is the normal, turned towards the points' side, and
 /// its extent the points' reach from the plane (the plane included: a block scanned from above
 /// only still stands on it); the other two are the sides of the smallest rectangle holding the
-/// points projected onto the plane, longer first. Rigid-motion free, as the plane is the scan's.
+/// points projected onto the plane, longer first (the longer side's axis turned towards the
+/// side where the points reach further). Rigid-motion free, as the plane is the scan's.
 pub(crate) fn support_frame(points: &[Point3], c: Point3, n: Point3) -> Option<(Mat4, [f64; 3])> {
     let m = points.len();
     if m < 3 {
@@ -566,6 +567,13 @@ pub(crate) fn support_frame(points: &[Point3], c: Point3, n: Point3) -> Option<(
     let r = smallest_rectangle(&hull)?;
     let along = add(scale(b1, r.u[0]), scale(b2, r.u[1]));
     let (e1, size1, size2) = if r.wu >= r.wv { (along, r.wu, r.wv) } else { (cross(e0, along), r.wv, r.wu) };
+    // Turned towards the side where the points reach further, as the principal frame's axes
+    // are, so that the frame follows the points under a rigid motion.
+    let (lo1, hi1) = points.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &p| {
+        let d = dot(sub(p, mean), e1);
+        (lo.min(d), hi.max(d))
+    });
+    let e1 = if hi1 >= -lo1 { e1 } else { scale(e1, -1.0) };
     let e2 = cross(e0, e1);
     let frame = [
         [e0[0], e1[0], e2[0], mean[0]],
@@ -1040,19 +1048,37 @@ mod tests {
                 .iter()
                 .map(|p| p.0)
                 .collect();
-        let (_, a) = support_frame(&pts, [5.0, 0.0, 5.0], [0.0, 1.0, 0.0]).unwrap();
-        // The same block and plane, turned by 70° about x and moved.
-        let (c, s) = (70f64.to_radians().cos(), 70f64.to_radians().sin());
-        let m = |p: Point3| [p[0] + 1.0, c * p[1] - s * p[2] - 2.0, s * p[1] + c * p[2] + 3.0];
-        let moved: Vec<Point3> = pts.iter().map(|&p| m(p)).collect();
-        let (frame, b) = support_frame(&moved, m([5.0, 0.0, 5.0]), [0.0, c, s]).unwrap();
-        for k in 0..3 {
-            assert!((a[k] - b[k]).abs() < 1e-9, "{a:?} {b:?}");
+        let (c0, n0) = ([5.0, 0.0, 5.0], [0.0, 1.0, 0.0]);
+        let (f0, a) = support_frame(&pts, c0, n0).unwrap();
+        // The same block and plane under several motions: turned about x (which keeps the
+        // frame's first guess across the normal) and about z by 80° and 100° (the normal
+        // comes near x, so the guess changes), each moved.
+        for (axis, deg) in [(0, 70.0), (2, 80.0), (2, 100.0), (0, 180.0)] {
+            let (c, s) = (f64::to_radians(deg).cos(), f64::to_radians(deg).sin());
+            let turn = |p: Point3| match axis {
+                0 => [p[0], c * p[1] - s * p[2], s * p[1] + c * p[2]],
+                _ => [c * p[0] - s * p[1], s * p[0] + c * p[1], p[2]],
+            };
+            let m = |p: Point3| add(turn(p), [1.0, -2.0, 3.0]);
+            let moved: Vec<Point3> = pts.iter().map(|&p| m(p)).collect();
+            let (frame, b) = support_frame(&moved, m(c0), turn(n0)).unwrap();
+            for k in 0..3 {
+                assert!((a[k] - b[k]).abs() < 1e-9, "{deg}: {a:?} {b:?}");
+            }
+            // The first axis is the plane's normal turned towards the block, whichever way the
+            // normal came; every axis follows the block.
+            let (_, flipped) = support_frame(&moved, m(c0), scale(turn(n0), -1.0)).unwrap();
+            assert!((flipped[0] - b[0]).abs() < 1e-9);
+            for axis in 0..3 {
+                let turned = turn([f0[0][axis], f0[1][axis], f0[2][axis]]);
+                for k in 0..3 {
+                    assert!(
+                        (turned[k] - frame[k][axis]).abs() < 1e-9,
+                        "{deg}, axis {axis}: {f0:?} {frame:?}"
+                    );
+                }
+            }
         }
-        // The first axis is the plane's normal, turned towards the block, whichever way it came.
-        let (_, flipped) = support_frame(&moved, m([5.0, 0.0, 5.0]), [0.0, -c, -s]).unwrap();
-        assert!((flipped[0] - b[0]).abs() < 1e-9);
-        assert!((frame[1][0] - c).abs() < 1e-9 && (frame[2][0] - s).abs() < 1e-9, "{frame:?}");
     }
 
     #[test]
