@@ -435,6 +435,26 @@ impl Segments {
     }
 }
 
+/// The least-squares plane of `m` points given as the sums of their offsets from `origin` and
+/// of those offsets' outer products: its centroid and unit normal, turned to the side of
+/// `towards`.
+fn fit_plane(
+    sum: &nalgebra::Vector3<f64>,
+    sum2: &nalgebra::Matrix3<f64>,
+    m: usize,
+    origin: Point3,
+    towards: Point3,
+) -> (Point3, Point3) {
+    let m = m as f64;
+    let mean = sum / m;
+    let cov = sum2 / m - mean * mean.transpose();
+    let eig = nalgebra::SymmetricEigen::new(cov);
+    let k = (0..3).fold(0, |b, k| if eig.eigenvalues[k] < eig.eigenvalues[b] { k } else { b });
+    let v = eig.eigenvectors.column(k);
+    let sign = if v[0] * towards[0] + v[1] * towards[1] + v[2] * towards[2] < 0.0 { -1.0 } else { 1.0 };
+    ([origin[0] + mean[0], origin[1] + mean[1], origin[2] + mean[2]], [sign * v[0], sign * v[1], sign * v[2]])
+}
+
 /// Union–find with path halving.
 fn find(parent: &mut [u32], mut i: u32) -> u32 {
     while parent[i as usize] != i {
@@ -563,15 +583,7 @@ pub fn segment(
             sum2 += d * d.transpose();
             if head == refit_at {
                 refit_at *= 2;
-                let m = head as f64;
-                let mean = sum / m;
-                let cov = sum2 / m - mean * mean.transpose();
-                let eig = nalgebra::SymmetricEigen::new(cov);
-                let k = (0..3).fold(0, |b, k| if eig.eigenvalues[k] < eig.eigenvalues[b] { k } else { b });
-                let v = eig.eigenvectors.column(k);
-                let sign = if dot([v[0], v[1], v[2]], plane_n) < 0.0 { -1.0 } else { 1.0 };
-                plane_n = [sign * v[0], sign * v[1], sign * v[2]];
-                plane_c = [ps[0] + mean[0], ps[1] + mean[1], ps[2] + mean[2]];
+                (plane_c, plane_n) = fit_plane(&sum, &sum2, head, ps, plane_n);
             }
             let (pc, pn) = (plane_c, plane_n);
             found.clear();
@@ -601,17 +613,7 @@ pub fn segment(
                 plane_of[i as usize] = planes.len() as u32;
             }
             // The plane refitted to all its members.
-            let m = queue.len() as f64;
-            let mean = sum / m;
-            let cov = sum2 / m - mean * mean.transpose();
-            let eig = nalgebra::SymmetricEigen::new(cov);
-            let k = (0..3).fold(0, |b, k| if eig.eigenvalues[k] < eig.eigenvalues[b] { k } else { b });
-            let v = eig.eigenvectors.column(k);
-            let sign = if dot([v[0], v[1], v[2]], plane_n) < 0.0 { -1.0 } else { 1.0 };
-            planes.push((
-                [ps[0] + mean[0], ps[1] + mean[1], ps[2] + mean[2]],
-                [sign * v[0], sign * v[1], sign * v[2]],
-            ));
+            planes.push(fit_plane(&sum, &sum2, queue.len(), ps, plane_n));
         }
         next += 1;
     }

@@ -418,6 +418,29 @@ fn place(points: &[Point3], r: &Matrix3<f64>, from: &Vector3<f64>, to: &Vector3<
     }));
 }
 
+/// The mean of `points` (not empty).
+fn centroid(points: &[Point3]) -> Point3 {
+    let n = points.len() as f64;
+    let mut mean = [0.0; 3];
+    for p in points {
+        for k in 0..3 {
+            mean[k] += p[k] / n;
+        }
+    }
+    mean
+}
+
+/// The frame with `axes` as columns and its origin at `origin`.
+fn frame_of(axes: [Point3; 3], origin: Point3) -> Mat4 {
+    let [a, b, c] = axes;
+    [
+        [a[0], b[0], c[0], origin[0]],
+        [a[1], b[1], c[1], origin[1]],
+        [a[2], b[2], c[2], origin[2]],
+        [0.0, 0.0, 0.0, 1.0],
+    ]
+}
+
 /// The frame of `points` and their extents along its axes, largest first: the first axis is
 /// the principal axis of largest variance, the other two the sides of the smallest rectangle
 /// holding the points projected across it ([`smallest_rectangle`], which depends on the
@@ -425,23 +448,17 @@ fn place(points: &[Point3], r: &Matrix3<f64>, from: &Vector3<f64>, to: &Vector3<
 /// side where the points reach further from the centroid, the third completes a right-handed
 /// frame; so the frame follows the points under a rigid motion.
 pub(crate) fn principal_frame(points: &[Point3]) -> Option<(Mat4, [f64; 3])> {
-    let n = points.len();
-    if n < 3 {
+    if points.len() < 3 {
         return None;
     }
-    let mut mean = [0.0; 3];
-    for p in points {
-        for k in 0..3 {
-            mean[k] += p[k] / n as f64;
-        }
-    }
+    let mean = centroid(points);
     let centred: Vec<Point3> = points.iter().map(|&p| sub(p, mean)).collect();
     let mut cov = nalgebra::Matrix3::<f64>::zeros();
     for d in &centred {
         let d = nalgebra::Vector3::new(d[0], d[1], d[2]);
         cov += d * d.transpose();
     }
-    let eig = nalgebra::SymmetricEigen::new(cov / n as f64);
+    let eig = nalgebra::SymmetricEigen::new(cov / points.len() as f64);
     let order = {
         let mut o = [0usize, 1, 2];
         o.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
@@ -470,12 +487,7 @@ pub(crate) fn principal_frame(points: &[Point3]) -> Option<(Mat4, [f64; 3])> {
     let (size1, e1) = span(long);
     let (size2, _) = span(short);
     let e2 = cross(e0, e1);
-    let frame = [
-        [e0[0], e1[0], e2[0], mean[0]],
-        [e0[1], e1[1], e2[1], mean[1]],
-        [e0[2], e1[2], e2[2], mean[2]],
-        [0.0, 0.0, 0.0, 1.0],
-    ];
+    let frame = frame_of([e0, e1, e2], mean);
     let mut sizes = [size0, size1, size2];
     sizes.sort_by(|a, b| b.total_cmp(a));
     Some((frame, sizes))
@@ -537,16 +549,10 @@ fn contact_plane(
 /// points projected onto the plane, longer first (the longer side's axis turned towards the
 /// side where the points reach further). Rigid-motion free, as the plane is the scan's.
 pub(crate) fn support_frame(points: &[Point3], c: Point3, n: Point3) -> Option<(Mat4, [f64; 3])> {
-    let m = points.len();
-    if m < 3 {
+    if points.len() < 3 {
         return None;
     }
-    let mut mean = [0.0; 3];
-    for p in points {
-        for k in 0..3 {
-            mean[k] += p[k] / m as f64;
-        }
-    }
+    let mean = centroid(points);
     let e0 = if dot(sub(mean, c), n) >= 0.0 { n } else { scale(n, -1.0) };
     let (mut lo, mut hi) = (0.0f64, 0.0f64);
     for &p in points {
@@ -575,12 +581,7 @@ pub(crate) fn support_frame(points: &[Point3], c: Point3, n: Point3) -> Option<(
     });
     let e1 = if hi1 >= -lo1 { e1 } else { scale(e1, -1.0) };
     let e2 = cross(e0, e1);
-    let frame = [
-        [e0[0], e1[0], e2[0], mean[0]],
-        [e0[1], e1[1], e2[1], mean[1]],
-        [e0[2], e1[2], e2[2], mean[2]],
-        [0.0, 0.0, 0.0, 1.0],
-    ];
+    let frame = frame_of([e0, e1, e2], mean);
     Some((frame, [hi - lo, size1, size2]))
 }
 
