@@ -110,12 +110,21 @@ pub struct JsonArg {
     pub json: Option<PathBuf>,
 }
 
-/// A path for a `--json` report: [`json_path`], and not an existing file that holds one of the
-/// documents Motif reads (a detection result or ground truth, a symmetry annotation, handles, an
-/// MRF problem): `motif eval --json r.json g.json r2.json` took the result `r.json` as the report's
-/// file and overwrote it.
+/// A path for a `--json` report: not a model or picture file (as [`json_path`]), and not an
+/// existing file that holds one of the documents Motif reads (a detection result or ground
+/// truth, a symmetry annotation, handles, an MRF problem): `motif eval --json r.json g.json
+/// r2.json` took the result `r.json` as the report's file and overwrote it. `--json` takes an
+/// optional value, so the messages say how it can take an input by mistake.
 pub fn json_report_path(value: &str) -> Result<PathBuf, String> {
-    let path = json_path(value)?;
+    const HINT: &str = "did --json take an input file as its value? put --json after the inputs, or write \
+                        --json=REPORT.json";
+    if let Some(e) = model_extension(value) {
+        return Err(format!(
+            "a JSON report would be written to {value}, whose .{e} extension names a model or picture \
+             format ({HINT})"
+        ));
+    }
+    let path = PathBuf::from(value);
     let mut head = Vec::new();
     if let Ok(f) = std::fs::File::open(&path) {
         use std::io::Read;
@@ -135,31 +144,31 @@ pub fn json_report_path(value: &str) -> Result<PathBuf, String> {
         None
     };
     match kind {
-        Some(kind) => Err(format!(
-            "{value} holds {kind}, which a report would overwrite (did --json take an input file as \
-             its value? put --json after the inputs, or write --json=REPORT.json)"
-        )),
+        Some(kind) => Err(format!("{value} holds {kind}, which a report would overwrite ({HINT})")),
         None => Ok(path),
     }
 }
 
-/// A path a JSON document is written to: refused when its extension names a model or picture
-/// format. `--json` takes an optional value, so `motif offsets --json a.obj b.obj` read `a.obj`
-/// as the report's file and overwrote the input mesh with JSON; and `motif detect x.ply -o r.ply`
-/// wrote JSON into a `.ply`.
+/// A path a JSON document (a result, an annotation) is written to with `-o`: refused when its
+/// extension names a model or picture format, since `motif detect x.ply -o r.ply` wrote JSON
+/// into a `.ply`.
 pub fn json_path(value: &str) -> Result<PathBuf, String> {
-    let path = PathBuf::from(value);
-    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    match ext.as_deref() {
-        Some(e @ ("obj" | "ply" | "off" | "stl" | "gltf" | "glb" | "png" | "jpg" | "jpeg" | "svg")) => {
-            Err(format!(
-                "a JSON document would be written to {value}, whose .{e} extension names a model or picture \
-             format (did --json take an input file as its value? put --json after the inputs, or \
-             write --json=FILE.json)"
-            ))
-        }
-        _ => Ok(path),
+    match model_extension(value) {
+        Some(e) => Err(format!(
+            "this output is a JSON document, but {value}'s .{e} extension names a model or picture \
+             format (name it .json)"
+        )),
+        None => Ok(PathBuf::from(value)),
     }
+}
+
+/// The extension of `value`, lower case, when it names a model or picture format.
+fn model_extension(value: &str) -> Option<String> {
+    let ext =
+        std::path::Path::new(value).extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase)?;
+    ["obj", "ply", "off", "stl", "gltf", "glb", "png", "jpg", "jpeg", "svg"]
+        .contains(&ext.as_str())
+        .then_some(ext)
 }
 
 /// Value parser for one file of a comma-separated list: an empty name (a stray comma, as in
@@ -879,9 +888,10 @@ pub struct RetargetArgs {
     /// Principal offsets to add per direction, as U,V,W (negative shrinks), e.g. 2,1,0.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub steps: Option<Vec<i32>>,
-    /// Desired bounding-box size X,Y,Z in model units; rounded to whole offsets.
-    #[arg(long, value_delimiter = ',')]
-    pub target_size: Option<Vec<f64>>,
+    /// Desired bounding-box size X,Y,Z in model units; rounded to whole offsets. `-` keeps an
+    /// axis's size (e.g. 3,-,-).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub target_size: Option<Vec<SizeArg>>,
     /// Offsets (detected) or the dense baseline.
     #[arg(long, value_enum, default_value_t)]
     pub method: RetargetMethodArg,
@@ -913,6 +923,23 @@ pub struct RetargetArgs {
     pub preview: Option<PathBuf>,
     #[command(flatten)]
     pub json: JsonArg,
+}
+
+/// One size of `--target-size`: a length in model units, or `-` (also `keep`) for the size the
+/// model has along that axis.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct SizeArg(pub Option<f64>);
+
+impl std::str::FromStr for SizeArg {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.trim() {
+            "-" | "keep" => Ok(SizeArg(None)),
+            t => t.parse::<f64>().map(|v| SizeArg(Some(v))).map_err(|_| {
+                format!("{s:?} is not a size: give a length in model units, or - to keep the model's size")
+            }),
+        }
+    }
 }
 
 /// `--assignment` of `motif retarget`.

@@ -10,7 +10,7 @@ mod progress;
 
 use std::process::ExitCode;
 
-use clap::Parser;
+use clap::{CommandFactory, FromArgMatches};
 
 /// Exit quietly, like other Unix tools killed by SIGPIPE (status 141), when stdout is closed by a
 /// reader such as `head`: Rust ignores SIGPIPE and `println!` then panics on the broken pipe.
@@ -38,13 +38,25 @@ fn quiet_on_broken_pipe() {
     }));
 }
 
+/// The arguments, with negative numbers taken as values everywhere: `--tau -1` is then refused
+/// by the option's own range check, which says what the range is, rather than read as an
+/// unknown flag `-1`.
+fn parse_arguments() -> cli::Cli {
+    fn negatives(cmd: clap::Command) -> clap::Command {
+        cmd.mut_args(|a| if a.get_action().takes_values() { a.allow_negative_numbers(true) } else { a })
+            .mut_subcommands(negatives)
+    }
+    let matches = negatives(cli::Cli::command()).get_matches();
+    cli::Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit())
+}
+
 /// `--threads` beyond this many per core only costs time (thousands of threads take seconds to
 /// start and contend for the cores).
 const MAX_THREADS_PER_CORE: usize = 8;
 
 fn main() -> ExitCode {
     quiet_on_broken_pipe();
-    let cli = cli::Cli::parse();
+    let cli = parse_arguments();
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     if let Some(threads) = cli.global.threads.filter(|&t| t > MAX_THREADS_PER_CORE * cores) {
         eprintln!(

@@ -601,6 +601,9 @@ fn symmetry_detect_writes_an_annotation_and_mrf_solve_reports_energy() {
     let r = json_of(&motif(&["mrf", "solve", "p.json", "--json"], d.path()));
     assert_eq!(r["labels_flat"].as_array().unwrap().len(), 120);
     assert!(r["energy"].as_i64().unwrap() <= r["initial_energy"].as_i64().unwrap());
+    // The report names the problem and the solver's options.
+    assert_eq!(r["problem"], "p.json");
+    assert_eq!(r["options"]["max_cycles"], 100);
     std::fs::write(d.path().join("bad.json"), r#"{"format": "mrf_grid_v1", "dims": [2, 2]}"#).unwrap();
     let o = motif(&["mrf", "solve", "bad.json"], d.path());
     assert_eq!(o.status.code(), Some(2));
@@ -611,8 +614,11 @@ fn symmetry_detect_writes_an_annotation_and_mrf_solve_reports_energy() {
 fn the_examples_own_drag_deforms_with_default_settings() {
     // The gear's handle spheres (5% of its diagonal) were narrower than the default samples'
     // spacing, and deform refused them.
+    // A handle the symmetries hold back is warned about: the fan's drag fixes one end of its
+    // longest axis and lifts the other, which its rotations cannot follow (they move both ends
+    // alike); the chair's drag they can.
     let d = tmp();
-    for ex in ["gear", "fan"] {
+    for (ex, held_back) in [("gear", true), ("fan", true), ("chair", false)] {
         let args = ["example", ex, "e.obj", "--annotation", "e.sym.json", "--handles", "e.h.json"];
         assert!(motif(&args, d.path()).status.success());
         let o = motif(
@@ -620,6 +626,8 @@ fn the_examples_own_drag_deforms_with_default_settings() {
             d.path(),
         );
         assert!(o.status.success(), "{ex}: {}", stderr(&o));
+        let warned = stderr(&o).contains("warning: handle") && stderr(&o).contains("from its target");
+        assert_eq!(warned, held_back, "{ex}: {}", stderr(&o));
     }
 }
 
@@ -720,6 +728,7 @@ fn offsets_find_the_shelf_pitch_and_sparsity_runs_on_a_folder() {
     let s: serde_json::Value =
         serde_json::from_slice(&std::fs::read(d.path().join("s.json")).unwrap()).unwrap();
     let r = json_of(&motif(&["offsets", "shelf.obj", "--plot", "shelf.png", "--json"], d.path()));
+    assert_eq!(r["input"], "shelf.obj");
     let png = std::fs::read(d.path().join("shelf.png")).unwrap();
     assert_eq!(&png[1..4], b"PNG");
     let principal = r["principal"].as_array().unwrap();
@@ -780,6 +789,17 @@ fn retarget_adds_shelf_cells_and_refuses_models_without_repetition() {
         d.path(),
     ));
     assert_eq!(r["steps"][0], 2);
+    // The report keeps the request and the size reached (whole cells of 0.42: 1.7 + 2 × 0.42).
+    assert_eq!(r["request"]["target_size"], serde_json::json!([2.5, 1.5, 0.3]));
+    assert_eq!(r["request"]["method"], "offsets");
+    assert!((r["output_size"][0].as_f64().unwrap() - (sx + 0.84)).abs() < 1e-6, "{}", r["output_size"]);
+    // `-` keeps an axis's size, so an axis that does not repeat need not be typed exactly.
+    let r = json_of(&motif(
+        &["retarget", "shelf.obj", "--target-size", "2.5,-,-", "-o", "t.obj", "--json"],
+        d.path(),
+    ));
+    assert_eq!(r["steps"], serde_json::json!([2, 0, 0]));
+    assert_eq!(r["request"]["target_size"], serde_json::json!([2.5, null, null]));
     // Dense baseline: many more nodes and labels.
     let r = json_of(&motif(
         &["retarget", "shelf.obj", "--steps", "1,1", "--method", "dense", "-o", "dense.obj", "--json"],
@@ -1564,9 +1584,16 @@ fn a_json_flag_that_takes_an_input_as_its_value_is_refused_and_nothing_is_overwr
         assert!(stderr(&o).contains("did --json take an input file"), "{}", stderr(&o));
     }
     assert_eq!(std::fs::read(d.path().join("a.obj")).unwrap(), before, "the mesh is untouched");
-    // A JSON result written under a model extension is refused too.
-    let o = motif(&["mrf", "generate", "-o", "p.obj"], d.path());
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    // A JSON result written under a model extension is refused too, and the message speaks of
+    // the output the user named, not of --json.
+    for args in [&["mrf", "generate", "-o", "p.obj"][..], &["symmetry", "detect", "a.obj", "-o", "a.obj"]] {
+        let o = motif(args, d.path());
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        let e = stderr(&o);
+        assert!(e.contains("this output is a JSON document") && e.contains("name it .json"), "{args:?}: {e}");
+        assert!(!e.contains("--json"), "{args:?}: {e}");
+    }
+    assert_eq!(std::fs::read(d.path().join("a.obj")).unwrap(), before, "the mesh is untouched");
     // A detection result taken as the report's file.
     assert!(
         motif(&["example", "scene-facade", "f.ply", "--gt", "g.json", "--points", "3000"], d.path())
@@ -1661,6 +1688,13 @@ fn option_errors_speak_in_the_users_terms() {
         let o = motif(&["detect", "f.ply", "-o", "d.json", &format!("{flag}={value}")], d.path());
         assert_eq!(o.status.code(), Some(2));
         assert!(stderr(&o).contains(&format!("{flag} {value}")), "{}", stderr(&o));
+    }
+    // An ε larger than the model leaves nothing to repeat: an error, not an empty result.
+    for (flag, value) in [("--epsilon", "5"), ("--epsilon-abs", "1000")] {
+        let o = motif(&["detect", "f.ply", "-o", "d.json", flag, value], d.path());
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains("of the diagonal") && stderr(&o).contains("1/16"), "{}", stderr(&o));
+        assert!(!d.path().join("d.json").exists());
     }
     let o = motif(&["mrf", "solve", "nope.json"], d.path());
     assert_eq!(stderr(&o).matches("nope.json").count(), 1, "{}", stderr(&o));

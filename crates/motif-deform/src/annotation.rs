@@ -103,12 +103,26 @@ fn diagnose_symmetries(json: &str) -> Option<String> {
     None
 }
 
+/// Checks a JSON document's `format` tag before its fields: a handles file given where an
+/// annotation is expected is named as such, not reported as a missing field of an annotation.
+/// Documents that are not objects with a string tag pass, and the typed parse reports them.
+pub(crate) fn check_format_tag(json: &str, expected: &'static str, what: &str) -> Result<()> {
+    let Ok(v) = serde_json::from_str::<serde_json::Value>(json) else { return Ok(()) };
+    match v.get("format").and_then(|f| f.as_str()) {
+        Some(found) if found != expected => {
+            Err(DeformError::WrongFormat { what: what.to_string(), expected, found: found.to_string() })
+        }
+        _ => Ok(()),
+    }
+}
+
 /// Parses a `motif_symmetry_v1` annotation from JSON text and checks its format tag and tolerance.
 pub fn parse_annotation(json: &str) -> Result<SymmetryAnnotation> {
     parse_annotation_named(json, "symmetry annotation")
 }
 
 fn parse_annotation_named(json: &str, what: &str) -> Result<SymmetryAnnotation> {
+    check_format_tag(json, SYMMETRY_FORMAT, what)?;
     let a: SymmetryAnnotation = serde_json::from_str(json).map_err(|source| {
         // The two kinds of symmetry are untagged, so serde's own message for a bad entry is "data
         // did not match any variant"; say which entry and which field instead.
@@ -628,6 +642,13 @@ mod tests {
         assert_eq!(a.symmetries.len(), 1);
         let bad = ok.replace("motif_symmetry_v1", "motif_symmetry_v9");
         assert!(matches!(parse_annotation(&bad), Err(DeformError::WrongFormat { .. })));
+        // A handles file is named by its tag, not reported as an annotation missing `tolerance`.
+        let handles = r#"{"format":"motif_handles_v1","handles":[{"region":"all"}],"frames":[]}"#;
+        let e = parse_annotation(handles).unwrap_err();
+        assert!(
+            matches!(e, DeformError::WrongFormat { .. }) && e.to_string().contains("motif_handles_v1"),
+            "{e}"
+        );
         assert!(matches!(parse_annotation("{"), Err(DeformError::Json { .. })));
         // A group with instances too would be read as the group, the instances dropped.
         let both = ok.replace(r#""region":"all","#, r#""region":"all","instances":[],"#);

@@ -74,6 +74,7 @@ impl HandlesFile {
     }
 
     fn parse(json: &str, what: &str) -> Result<HandlesFile> {
+        crate::annotation::check_format_tag(json, HANDLES_FORMAT, what)?;
         let f: HandlesFile = serde_json::from_str(json)
             .map_err(|source| DeformError::Json { what: what.to_string(), source })?;
         if f.format != HANDLES_FORMAT {

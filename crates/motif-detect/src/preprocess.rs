@@ -39,6 +39,10 @@ pub enum Epsilon {
     Auto,
 }
 
+/// The largest ε accepted without `--force`, as a share of the diagonal: at 1/16 a HOC cell
+/// (8ε) spans half the model and the pair radius (64ε) four times it.
+pub const MAX_EPSILON_SHARE: f64 = 1.0 / 16.0;
+
 /// Options of [`preprocess`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -331,6 +335,18 @@ pub fn preprocess(cloud: &PointCloud, o: &PreprocessOptions, force: bool) -> Res
         return Err(DetectError::InvalidOption {
             name: "epsilon",
             message: format!("ε must be positive and finite, got {epsilon}"),
+        });
+    }
+    if epsilon > MAX_EPSILON_SHARE * diagonal && !force {
+        return Err(DetectError::InvalidOption {
+            name: "epsilon",
+            message: format!(
+                "ε = {epsilon:.3e} is {:.2} of the diagonal ({diagonal:.3e}); above 1/16 of it the surface \
+                 resamples to a few hundred points and one HOC cell (8ε) spans half the model, so \
+                 nothing can repeat (the thesis uses 0.0005 × diagonal for shapes, 0.00005 for city \
+                 scans); choose a smaller ε or pass --force",
+                epsilon / diagonal
+            ),
         });
     }
     // The surface resampled at spacing ε holds about area / ε² points; the principal box's

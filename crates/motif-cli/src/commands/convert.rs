@@ -22,13 +22,24 @@ pub fn run(a: ConvertArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     crate::output::check_output_formats(&[(Some(a.output()), crate::output::OutputKind::Model)])?;
     let t = Instant::now();
     let model = super::read_model(&a.input)?;
+    let mut warnings: Vec<String> =
+        model.warnings.iter().map(|w| format!("{}: {w}", a.input.display())).collect();
+    let format = motif_core::io::Format::from_path(a.output())?;
+    warnings.extend(
+        motif_core::io::lost_in(format, &model.vertices)
+            .into_iter()
+            .map(|l| format!("{}: {l} could not be written", a.output().display())),
+    );
     super::write_model(a.output(), &model, &[&a.input], g, &a.encoding)?;
+    for w in &warnings {
+        super::warn(w);
+    }
     let r = ConvertReport {
         input: a.input.display().to_string(),
         output: a.output().display().to_string(),
         vertices: model.vertices.len(),
         triangles: model.triangles.len(),
-        warnings: model.warnings.clone(),
+        warnings,
         ms: ms_since(t),
     };
     if !crate::output::json_on_stdout(&a.json.json) {

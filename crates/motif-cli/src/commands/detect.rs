@@ -187,7 +187,12 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             r.seconds.output
         );
     }
-    super::note(g, format!("wrote {}", a.output.display()));
+    let mut written: Vec<String> = vec![a.output.display().to_string()];
+    written.extend(a.labels.iter().map(|p| format!("{} (labelled points)", p.display())));
+    written.extend(a.as_symmetry.iter().map(|p| format!("{} (motif_symmetry_v1)", p.display())));
+    if let Some(p) = a.json.json.as_ref().filter(|p| !crate::output::json_on_stdout(&Some(p.to_path_buf()))) {
+        written.push(format!("{} (report)", p.display()));
+    }
     maybe_json(
         &a.json.json,
         &serde_json::json!({
@@ -197,7 +202,9 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             "classes": detection.result.classes.len(),
             "seconds": seconds,
         }),
-    )
+    )?;
+    super::note(g, format!("wrote {}", written.join(", ")));
+    Ok(())
 }
 
 /// The points with `class`/`instance` attributes (−1 for background) and class colours.

@@ -40,7 +40,14 @@ pub fn solve(a: MrfSolveArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         }
     };
     // A report written to a file leaves the text on stdout; one on stdout replaces it.
-    maybe_json(&a.json.json, &sol)?;
+    // The solution, with the problem's path and the solver's options beside it.
+    let mut report = serde_json::to_value(&sol)?;
+    if let Some(m) = report.as_object_mut() {
+        m.insert("problem".into(), serde_json::json!(a.problem.display().to_string()));
+        m.insert("options".into(), serde_json::to_value(&options)?);
+        m.insert("seed".into(), serde_json::json!(g.seed));
+    }
+    maybe_json(&a.json.json, &report)?;
     if crate::output::json_on_stdout(&a.json.json) {
         return Ok(());
     }

@@ -66,7 +66,11 @@ pub fn offsets(a: OffsetsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     if let Some(p) = &a.plot {
         super::note(g, format!("wrote {}", p.display()));
     }
-    maybe_json(&a.json.json, &an)
+    let mut report = serde_json::to_value(&an)?;
+    if let Some(m) = report.as_object_mut() {
+        m.insert("input".into(), serde_json::json!(a.mesh.display().to_string()));
+    }
+    maybe_json(&a.json.json, &report)
 }
 
 pub fn sparsity(a: SparsityArgs, g: &GlobalArgs) -> anyhow::Result<()> {
@@ -107,10 +111,9 @@ pub fn sparsity(a: SparsityArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         let reasons: Vec<String> = failed.iter().map(skipped).collect();
         return Err(bad_input(format!("no model could be analysed ({})", reasons.join("; "))));
     }
-    if !g.quiet {
-        for m in &failed {
-            eprintln!("skipped {}", skipped(m));
-        }
+    // A model left out of the study changes its figures: a warning, shown under --quiet too.
+    for m in &failed {
+        super::warn(format!("skipped {}", skipped(m)));
     }
     if let Some(p) = &a.plot {
         plot_sparsity(&report, p)?;

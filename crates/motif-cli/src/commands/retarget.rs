@@ -15,7 +15,7 @@ use motif_retarget::retarget::{
 };
 use serde::Serialize;
 
-use crate::cli::{AssignmentArg, GlobalArgs, RetargetArgs, RetargetMethodArg};
+use crate::cli::{AssignmentArg, GlobalArgs, RetargetArgs, RetargetMethodArg, SizeArg};
 use crate::output::{bad_input, check_outputs, maybe_json, ms_since};
 use crate::progress::Bar;
 
@@ -23,6 +23,10 @@ use crate::progress::Bar;
 struct Report<'a> {
     mesh: String,
     output: String,
+    /// What the user asked for, as given on the command line.
+    request: Request,
+    /// The output's bounding-box size, to compare with `request.target_size`.
+    output_size: Option<[f64; 3]>,
     steps: [i32; 3],
     principal_offsets: Vec<[f64; 3]>,
     offsets: &'a OffsetAnalysis,
@@ -34,6 +38,47 @@ struct Report<'a> {
     clean_alternatives: Option<Vec<[i32; 3]>>,
     analysis_ms: f64,
     total_ms: f64,
+}
+
+/// The command line's request, for the report.
+#[derive(Debug, Serialize)]
+struct Request {
+    steps: Option<Vec<i32>>,
+    target_size: Option<Vec<SizeArg>>,
+    method: &'static str,
+    offsets: Option<String>,
+    assignment: &'static str,
+    caps: bool,
+    fill: bool,
+    plain_resize: bool,
+    seed: u64,
+}
+
+impl Request {
+    fn of(a: &RetargetArgs, g: &GlobalArgs) -> Self {
+        Request {
+            steps: a.steps.clone(),
+            target_size: a.target_size.clone(),
+            method: match a.method {
+                RetargetMethodArg::Offsets => "offsets",
+                RetargetMethodArg::Dense => "dense",
+            },
+            offsets: a.offsets.clone(),
+            assignment: match a.assignment {
+                AssignmentArg::Centroid => "centroid",
+                AssignmentArg::Cut => "cut",
+            },
+            caps: !a.no_caps,
+            fill: !a.no_fill,
+            plain_resize: a.plain_resize,
+            seed: g.seed,
+        }
+    }
+}
+
+/// The size of `mesh`'s bounding box.
+fn size_of(mesh: &TriMesh) -> Option<[f64; 3]> {
+    mesh.aabb().map(|b| b.extent())
 }
 
 /// Steps near `steps` to suggest when `steps` stitch with seams of infinite cost: each requested
@@ -170,9 +215,17 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             }
         }
     }
+    // `-` keeps an axis's size: the extent the size checks below measure the model by.
+    let model_size = mesh.surface_aabb().or_else(|| mesh.aabb()).map_or([0.0; 3], |b| b.extent());
     let target = match &a.target_size {
-        Some(v) if v.len() == 3 && v.iter().all(|x| *x > 0.0 && x.is_finite()) => Some([v[0], v[1], v[2]]),
-        Some(_) => return Err(bad_input("--target-size needs three positive sizes X,Y,Z")),
+        Some(v) if v.len() == 3 && v.iter().all(|x| x.0.is_none_or(|x| x > 0.0 && x.is_finite())) => {
+            Some([0, 1, 2].map(|k| v[k].0.unwrap_or(model_size[k])))
+        }
+        Some(_) => {
+            return Err(bad_input(
+                "--target-size needs three sizes X,Y,Z, each positive, or - to keep the model's size along that axis",
+            ));
+        }
         None => None,
     };
     let bar = Bar::new(g.quiet);
@@ -270,6 +323,8 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         let report = Report {
             mesh: a.mesh.display().to_string(),
             output: a.output.display().to_string(),
+            request: Request::of(&a, g),
+            output_size: size_of(&out),
             steps: [0; 3],
             principal_offsets: principal,
             offsets: &analysis,
@@ -368,7 +423,7 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             return Err(anyhow::Error::from(e)
                 .context(format!(
                     "--target-size {} means --steps {} along the principal offsets (`motif offsets {}` lists them)",
-                    show(size.iter().map(|x| x.to_string()).collect()),
+                    show(size.iter().map(|x| x.0.map_or("-".to_string(), |x| x.to_string())).collect()),
                     show(steps[..principal.len()].iter().map(|x| x.to_string()).collect()),
                     a.mesh.display()
                 ))
@@ -409,6 +464,20 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             mesh.num_vertices(),
             mesh.num_triangles()
         );
+        // Whole steps come as close to a target size as the pitch allows: say how close.
+        if let (Some(want), Some(got)) = (target, size_of(&res.mesh)) {
+            let d = mesh.aabb().map_or(1.0, |b| b.diagonal());
+            let len = |x: f64| motif_core::geometry::format_length(x, d, 4);
+            println!(
+                "size: {} x {} x {} (asked {} x {} x {}; whole steps of the offsets)",
+                len(got[0]),
+                len(got[1]),
+                len(got[2]),
+                len(want[0]),
+                len(want[1]),
+                len(want[2])
+            );
+        }
         if r.capped_loops + r.filled_holes + r.output_boundary_edges > 0 {
             println!(
                 "closing: {} openings capped ({} triangles), {} holes filled ({} triangles), {} boundary edges \
@@ -464,6 +533,8 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let report = Report {
         mesh: a.mesh.display().to_string(),
         output: a.output.display().to_string(),
+        request: Request::of(&a, g),
+        output_size: size_of(&res.mesh),
         steps,
         principal_offsets: principal.clone(),
         offsets: &analysis,

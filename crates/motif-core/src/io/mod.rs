@@ -363,6 +363,26 @@ pub fn write(path: &Path, model: &Model, options: &WriteOptions) -> Result<()> {
     write_parts(path, &model.vertices, &model.triangles, options)
 }
 
+/// What writing `cloud` as `format` leaves out, in words (empty when the format holds it all):
+/// only PLY holds named per-vertex attributes, and STL holds neither vertex normals nor colours.
+/// `motif convert` says so rather than drop them silently.
+pub fn lost_in(format: Format, cloud: &PointCloud) -> Vec<String> {
+    let mut lost = Vec::new();
+    if format != Format::Ply && !cloud.attributes.is_empty() {
+        let names: Vec<&str> = cloud.attributes.iter().map(|a| a.name.as_str()).collect();
+        lost.push(format!("the per-vertex attributes {} (only PLY holds them)", names.join(", ")));
+    }
+    if format == Format::Stl {
+        if cloud.normals.is_some() {
+            lost.push("the vertex normals (STL keeps facet normals only, computed from the corners)".into());
+        }
+        if cloud.colors.is_some() {
+            lost.push("the vertex colours (STL holds none)".into());
+        }
+    }
+    lost
+}
+
 /// [`write`] on borrowed parts, so writing a point cloud or mesh copies nothing large.
 fn write_parts(
     path: &Path,

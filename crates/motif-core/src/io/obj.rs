@@ -52,6 +52,9 @@ pub(super) fn read(bytes: &[u8], path: &Path) -> Result<Model> {
     let mut forward_v: Option<(u32, usize)> = None;
     let mut forward_n: Option<(u32, usize)> = None;
     let mut ignored: Vec<(String, usize)> = Vec::new();
+    // Texture coordinates and materials are not read: said once each, as they will be missing
+    // from anything written from this model.
+    let (mut texture_coordinates, mut materials) = (0usize, 0usize);
     let lines = Lines::new(bytes);
     // A line ending in a backslash continues on the next (the OBJ specification's line
     // continuation): the pieces are joined with a space and read as one statement, reported at
@@ -165,7 +168,9 @@ pub(super) fn read(bytes: &[u8], path: &Path) -> Result<Model> {
             _ => {
                 check_utf8(path, ln, raw, "OBJ")?;
                 match key {
-                    b"vt" | b"vp" | b"o" | b"g" | b"s" | b"l" | b"p" | b"usemtl" | b"mtllib" => {}
+                    b"vt" => texture_coordinates += 1,
+                    b"usemtl" | b"mtllib" => materials += 1,
+                    b"vp" | b"o" | b"g" | b"s" | b"l" | b"p" => {}
                     other => {
                         let other = String::from_utf8_lossy(other).into_owned();
                         match ignored.iter_mut().find(|(k, _)| *k == other) {
@@ -256,6 +261,14 @@ pub(super) fn read(bytes: &[u8], path: &Path) -> Result<Model> {
         None
     };
 
+    if texture_coordinates > 0 {
+        warnings.push(format!(
+            "ignored {texture_coordinates} texture coordinate lines (vt): Motif keeps positions, normals and colours only"
+        ));
+    }
+    if materials > 0 {
+        warnings.push(format!("ignored {materials} material lines (usemtl, mtllib)"));
+    }
     for (k, n) in ignored {
         warnings.push(format!("ignored {n} lines with the unsupported keyword {k:?}"));
     }
@@ -374,7 +387,14 @@ mod tests {
         assert_eq!(m.source_faces, 3);
         assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3], [0, 1, 2], [0, 2, 3]]);
         assert_eq!(m.vertices.normals.as_ref().unwrap()[1], [0.0, 0.0, 1.0]);
-        assert!(m.warnings.is_empty(), "{:?}", m.warnings);
+        // Groups, smoothing and lines pass without a word; what an output would lack is named.
+        assert_eq!(
+            m.warnings,
+            [
+                "ignored 1 texture coordinate lines (vt): Motif keeps positions, normals and colours only",
+                "ignored 1 material lines (usemtl, mtllib)"
+            ]
+        );
     }
 
     #[test]
