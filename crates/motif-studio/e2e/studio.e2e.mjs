@@ -146,6 +146,20 @@ try {
   check(st.saved.includes('windmill-deformed.sym.json'), `exported ${st.saved.join(', ')}`);
   check(download.suggestedFilename() === 'windmill-deformed.obj' && existsSync(savedAs) && statSync(savedAs).size === statSync(join(root, 'windmill-deformed.obj')).size,
     `the browser downloaded ${download.suggestedFilename()} (${existsSync(savedAs) ? statSync(savedAs).size : 0} bytes)`);
+  // The same name again is refused until "replace existing files" is ticked (the page had no
+  // way to allow it).
+  const errorsBefore = st.errors.length;
+  await page.click('#export');
+  st = await until(page, (s, n) => s.errors.length > n && s.busy === null, errorsBefore);
+  check(/already exists/.test(st.errors[st.errors.length - 1]), `exporting onto the same name is refused: ${st.errors[st.errors.length - 1]}`);
+  await page.check('#overwrite');
+  const savedBefore = st.saved.length;
+  const again = page.waitForEvent('download', { timeout: 60000 });
+  await page.click('#export');
+  await again;
+  st = await until(page, (s, n) => s.saved.length > n && s.busy === null, savedBefore);
+  check(st.saved.slice(savedBefore).includes('windmill-deformed.obj'), `with "replace existing files" ticked the export is written again: ${st.saved.slice(savedBefore).join(', ')}`);
+  await page.uncheck('#overwrite');
   await page.setInputFiles('#upload', savedAs);
   st = await until(page, (s) => s.name === 'download-windmill-deformed.obj' && s.meshVersion > 0);
   const uploaded = maxDiff(await page.evaluate(() => window.motif.positions()), dragged);

@@ -247,13 +247,13 @@ pub fn upload(shared: &Shared, name: &str, bytes: &[u8], p: &JobProgress) -> Res
     Ok(install(shared, p, loaded, None, Vec::new()))
 }
 
+/// The annotation message, from the annotation's check against the mesh (`check_annotation`).
 fn annotation_message(
-    mesh: &TriMesh,
+    report: &motif_deform::AnnotationReport,
     annotation: &SymmetryAnnotation,
     groups: Vec<GroupSummary>,
     t: Instant,
 ) -> Result<ServerMessage> {
-    let report = check_annotation(mesh, annotation)?;
     let max_residual = report.symmetries.iter().map(|s| s.max_residual).fold(0.0, f64::max);
     Ok(ServerMessage::Annotation {
         annotation: annotation.clone(),
@@ -294,7 +294,8 @@ pub fn detect_symmetry(shared: &Shared, p: &JobProgress) -> Result<Vec<Out>> {
             max_residual: g.max_residual,
         })
         .collect();
-    let msg = annotation_message(mesh, &det.annotation, groups, t)?;
+    let report = check_annotation(mesh, &det.annotation)?;
+    let msg = annotation_message(&report, &det.annotation, groups, t)?;
     set_annotation(shared, p, det.annotation, None);
     Ok(vec![Out::Text(msg)])
 }
@@ -309,7 +310,31 @@ pub fn load_annotation(shared: &Shared, path: &str, p: &JobProgress) -> Result<V
     let file = sandbox.resolve_read(path)?;
     let t = Instant::now();
     let annotation = motif_deform::read_annotation(&file)?;
-    let msg = annotation_message(mesh, &annotation, Vec::new(), t)?;
+    // An annotation that does not fit the open model (another model's, or an empty region)
+    // could only fail later, at the first click: refused here, with what does not fit.
+    let report = check_annotation(mesh, &annotation)?;
+    if !report.ok {
+        let problems: Vec<String> = report
+            .symmetries
+            .iter()
+            .filter(|c| !c.ok)
+            .map(|c| match &c.problem {
+                Some(problem) => format!("symmetry {:?}: {problem}", c.name),
+                None => format!(
+                    "symmetry {:?} moves the surface {:.1e} of the diagonal off itself (tolerance {:.0e})",
+                    c.name, c.max_residual, annotation.tolerance
+                ),
+            })
+            .collect();
+        return Err(StudioError::BadPath {
+            path: shorten(path),
+            problem: format!(
+                "does not fit the open model, so it was not loaded: {}",
+                if problems.is_empty() { "the check failed".to_string() } else { problems.join("; ") }
+            ),
+        });
+    }
+    let msg = annotation_message(&report, &annotation, Vec::new(), t)?;
     set_annotation(shared, p, annotation, Some(file));
     Ok(vec![Out::Text(msg)])
 }
@@ -335,7 +360,7 @@ fn check_fresh(path: &std::path::Path, given: &str, overwrite: bool) -> Result<(
     if !overwrite && path.exists() {
         return Err(StudioError::BadPath {
             path: shorten(given),
-            problem: "already exists (choose another name, or allow overwriting)".to_string(),
+            problem: "already exists (choose another name, or tick \"replace existing files\")".to_string(),
         });
     }
     Ok(())
@@ -348,6 +373,12 @@ pub fn save_annotation(shared: &Shared, path: &str, overwrite: bool) -> Result<V
         .annotation
         .as_ref()
         .ok_or_else(|| StudioError::NotReady("no annotation yet: detect or load one".to_string()))?;
+    if !path.to_ascii_lowercase().ends_with(".json") {
+        return Err(StudioError::BadPath {
+            path: shorten(path),
+            problem: "an annotation is a JSON document: name it .json (e.g. model.sym.json)".to_string(),
+        });
+    }
     let _writes = writes_lock();
     let file = s.sandbox.resolve_write(path, &s.inputs)?;
     check_fresh(&file, path, overwrite)?;
@@ -618,12 +649,17 @@ pub fn export(
             };
             // The annotation goes beside the model as STEM.sym.json. Its path is checked before
             // anything is written, so that a refused annotation leaves no model behind. When that
-            // file is the annotation this session read and already holds the same annotation (the
+            // file already holds the same annotation (the annotation this session read, or the
             // model exported to another format beside it), it is kept as it is.
             let mut side_to_write = None;
             if let Some(a) = s.annotation.as_ref().filter(|_| model.is_mesh()) {
                 let side_text = file.with_extension("sym.json").display().to_string();
                 match s.sandbox.resolve_write(&side_text, &s.inputs) {
+                    // A file there that already holds this annotation (the model exported to
+                    // another format beside it) is kept as it is.
+                    Ok(side)
+                        if !overwrite
+                            && motif_deform::read_annotation(&side).is_ok_and(|held| &held == a) => {}
                     Ok(side) => {
                         check_fresh(&side, &side_text, overwrite)?;
                         side_to_write = Some((side, a));

@@ -692,3 +692,43 @@ async fn the_page_answers_get_and_refuses_other_methods() {
         assert!(r.to_ascii_lowercase().contains("allow: get, head"), "{method}: {r}");
     }
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_annotation_that_does_not_fit_is_refused_and_an_identical_one_beside_an_export_is_kept() {
+    let s = start().await;
+    let windmill = motif_core::procedural::generate("windmill", 1).unwrap();
+    std::fs::write(s.root.join("w.sym.json"), serde_json::to_string(&windmill.structure.symmetry).unwrap())
+        .unwrap();
+    let fence = motif_core::procedural::generate("fence", 1).unwrap();
+    motif_core::io::write_mesh(&s.root.join("f.obj"), &fence.mesh).unwrap();
+    let mut ws = connect(&s.url).await;
+    send(&mut ws, json!({"type": "open", "path": "f.obj"})).await;
+    assert!(matches!(next_text(&mut ws).await, ServerMessage::Model { .. }));
+    // The windmill's annotation on the fence: its regions select nothing there. It used to be
+    // accepted ("6 symmetries") and fail at the first click.
+    send(&mut ws, json!({"type": "load_annotation", "path": "w.sym.json"})).await;
+    expect_error(next_text(&mut ws).await, "does not fit the open model");
+    // The fence's own symmetries, exported beside the model in two formats: the second export
+    // finds the same annotation beside it and keeps it.
+    send(&mut ws, json!({"type": "detect_symmetry"})).await;
+    match next_text(&mut ws).await {
+        ServerMessage::Annotation { ok, .. } => assert!(ok),
+        other => panic!("expected the annotation, got {other:?}"),
+    }
+    send(&mut ws, json!({"type": "export", "path": "out.ply"})).await;
+    match next_text(&mut ws).await {
+        ServerMessage::Saved { paths } => assert_eq!(paths, vec!["out.ply", "out.sym.json"]),
+        other => panic!("expected saved, got {other:?}"),
+    }
+    let side = std::fs::read(s.root.join("out.sym.json")).unwrap();
+    send(&mut ws, json!({"type": "export", "path": "out.glb"})).await;
+    match next_text(&mut ws).await {
+        ServerMessage::Saved { paths } => assert_eq!(paths, vec!["out.glb"]),
+        other => panic!("expected saved, got {other:?}"),
+    }
+    assert_eq!(std::fs::read(s.root.join("out.sym.json")).unwrap(), side);
+    // An annotation is JSON: a model's extension is refused.
+    send(&mut ws, json!({"type": "save_annotation", "path": "f2.obj"})).await;
+    expect_error(next_text(&mut ws).await, "name it .json");
+    assert!(!s.root.join("f2.obj").exists());
+}

@@ -6,6 +6,9 @@ import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import { TransformControls } from 'three/addons/controls/TransformControls.js';
 
 const $ = (id) => document.getElementById(id);
+// A handle farther than this from its target (share of the diagonal) is said to lag: the
+// threshold `motif deform` warns at.
+const HANDLE_LAG = 0.01;
 
 const state = {
   connected: false, name: null, vertices: 0, triangles: 0, isMesh: false, bbox: null, diagonal: 0,
@@ -160,6 +163,7 @@ function onText(m) {
       if (m.request !== 'drag' && m.request !== 'release' && m.request !== 'retarget') setBusy(null);
       message(m.message, true);
       if (m.request === 'set_handles') handlesFailed();
+      if (m.request === 'retarget') restoreSteps();
       break;
   }
 }
@@ -405,7 +409,7 @@ function onAnnotation(m) {
 $('show-symmetry').onchange = () => { overlays.symmetry.visible = $('show-symmetry').checked; requestRender(); };
 $('detect-symmetry').onclick = () => { setBusy('detect_symmetry'); send({ type: 'detect_symmetry' }); };
 $('load-annotation').onclick = () => { setBusy('load_annotation'); send({ type: 'load_annotation', path: $('annotation-path').value }); };
-$('save-annotation').onclick = () => { setBusy('save_annotation'); send({ type: 'save_annotation', path: $('annotation-path').value }); };
+$('save-annotation').onclick = () => { setBusy('save_annotation'); send({ type: 'save_annotation', path: $('annotation-path').value, overwrite: $('overwrite').checked }); };
 
 const palette = [0xe6194b, 0x3cb44b, 0x4363d8, 0xf58231, 0x911eb4, 0x42d4f4, 0xf032e6, 0x9a6324, 0x469990, 0x800000];
 function onDetections(m) {
@@ -678,7 +682,11 @@ function onDeformed(m) {
   state.maxDisplacement = maxd / (state.diagonal || 1);
   $('deform-info').textContent = `${state.handles} handle(s); largest move ${(state.maxDisplacement * 100).toFixed(1)}% of the diagonal\n` +
     (m.residual == null ? 'no symmetry annotation' : `symmetry residual ${m.residual.toExponential(2)} (rest ${m.rest_residual.toExponential(2)})`) +
-    `\nhandle fit ${m.handle_error.toExponential(2)}, solve ${m.solve_ms.toFixed(1)} ms`;
+    `\nhandles within ${(100 * m.handle_error).toFixed(2)}% of the diagonal of their targets, solve ${m.solve_ms.toFixed(1)} ms` +
+    // Handles are soft: one the symmetries hold back lags its drag (as `motif deform` warns).
+    (m.handle_error > HANDLE_LAG && m.residual != null
+      ? `\nthe symmetries do not allow this motion: they are kept exact, and the handles lag behind (reset, or drag symmetric handles)`
+      : '');
 }
 function applySnapshot(s) {
   handles = s.map((h) => ({ balls: h.balls.map((b) => ({ ...b })), matrix: h.matrix.clone() }));
@@ -700,20 +708,26 @@ $('redo').onclick = () => {
   applySnapshot(s);
   updateUndo();
 };
-$('reset').onclick = () => { applySnapshot([]); pushUndo(); state.maxDisplacement = 0; };
+$('reset').onclick = () => { applySnapshot([]); pushUndo(); state.maxDisplacement = 0; $('deform-info').textContent = 'no handles'; };
 $('export-format').onchange = () => { $('export-path').value = $('export-path').value.replace(/\.[^.\/]*$/, '') + '.' + $('export-format').value; };
-$('export').onclick = () => { setBusy('export'); send({ type: 'export', path: $('export-path').value, source: 'deformed', download: true }); };
+$('export').onclick = () => { setBusy('export'); send({ type: 'export', path: $('export-path').value, source: 'deformed', download: true, overwrite: $('overwrite').checked }); };
 
 // ---------------------------------------------------------------------------------------------
 // Resize
 let retargetSeq = 0;
+// The steps of the resized model on screen: a size the server refuses puts the sliders back.
+let shownSteps = [0, 0, 0];
+function restoreSteps() {
+  shownSteps.forEach((v, k) => { if ($(`step-${k}`)) { $(`step-${k}`).value = v; $(`step-${k}-value`).textContent = v; } });
+}
 function onOffsets(m) {
+  shownSteps = [0, 0, 0];
   clearGroup(overlays.offsets);
   state.offsets = { principal: m.principal.length, cells: m.cells, summary: m.summary };
   state.cells = m.cells; state.totalCells = m.cells.reduce((a, b) => a * b, 1);
   const steps = $('steps');
   steps.replaceChildren();
-  if (!m.principal.length) { $('resize-info').textContent = `no repetition: ${m.summary}`; requestRender(); return; }
+  if (!m.principal.length) { $('resize-info').textContent = m.summary.startsWith('no repetition') ? m.summary : `no repetition: ${m.summary}`; requestRender(); return; }
   const origin = geometry.boundingBox.min.clone();
   m.principal.forEach((o, k) => {
     const v = new THREE.Vector3(...o);
@@ -742,12 +756,13 @@ function onRetargetedMesh(pos, index, m) {
   scene.add(retargetObject);
   object.visible = $('show-original').checked;
   state.cells = m.cells; state.totalCells = m.total_cells; state.retargetVertices = m.vertices; state.retargetVersion++;
+  shownSteps = m.steps.slice();
   $('resize-info').textContent = `steps ${m.steps.join(', ')}: cells ${m.cells.join(' × ')} = ${m.total_cells}\n${m.vertices} vertices, ${m.triangles} triangles, ${m.ms.toFixed(0)} ms`;
   requestRender();
 }
 $('show-original').onchange = () => { if (object) object.visible = $('show-original').checked || !retargetObject; requestRender(); };
 $('find-offsets').onclick = () => { setBusy('offsets'); send({ type: 'offsets' }); };
-$('export-resized').onclick = () => { setBusy('export'); send({ type: 'export', path: $('export-resized-path').value, source: 'retargeted', download: true }); };
+$('export-resized').onclick = () => { setBusy('export'); send({ type: 'export', path: $('export-resized-path').value, source: 'retargeted', download: true, overwrite: $('overwrite').checked }); };
 
 // Test helpers: where a world point appears on screen, and a rest vertex.
 window.motif.project = (p) => {
