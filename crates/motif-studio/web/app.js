@@ -72,6 +72,8 @@ const syncPixel = new Uint8Array(4);
 // reading a pixel does), so the frame-time readout measures drawn frames, not queued commands.
 function gpuSync() { gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, syncPixel); }
 let retargetObject = null;
+// The radius of the sphere the camera was last framed on.
+let framedRadius = 0;
 const overlays = { bbox: new THREE.Group(), symmetry: new THREE.Group(), detections: new THREE.Group(), handles: new THREE.Group(), offsets: new THREE.Group() };
 Object.values(overlays).forEach((g) => scene.add(g));
 
@@ -127,10 +129,18 @@ function message(text, isError = false) {
   box.prepend(div);
   while (box.children.length > 6) box.lastChild.remove();
 }
+// What the progress line calls each job (the protocol's names are for programs).
+const JOB_NAMES = {
+  detect: 'detecting building blocks', detect_symmetry: 'detecting symmetry', example: 'generating the example',
+  export: 'exporting', load_annotation: 'loading the annotation', load_detections: 'loading detections',
+  offsets: 'finding offsets', open: 'opening', save_annotation: 'saving the annotation',
+  set_handles: 'preparing the handles', upload: 'uploading', retarget: 'resizing',
+};
+const jobName = (job) => JOB_NAMES[job] || job.replace(/_/g, ' ');
 function setBusy(job) {
   state.busy = job;
   $('cancel').disabled = !job;
-  $('progress').textContent = job ? `${job}…` : '';
+  $('progress').textContent = job ? `${jobName(job)}…` : '';
 }
 
 function onText(m) {
@@ -144,11 +154,11 @@ function onText(m) {
       state.progress = m;
       state.progressLog.push(m);
       if (state.progressLog.length > 200) state.progressLog.shift();
-      $('progress').textContent = `${m.job}: ${m.stage}` + (m.total ? ` ${m.done}/${m.total}` : m.done ? ` ${m.done}` : '');
+      $('progress').textContent = `${jobName(m.job)}: ${m.stage}` + (m.total ? ` ${m.done}/${m.total}` : m.done ? ` ${m.done}` : '');
       break;
     case 'cancelled':
       setBusy(null);
-      message(`${m.job} cancelled`);
+      message(`${jobName(m.job)}: cancelled`);
       if (m.job === 'set_handles') handlesFailed();
       break;
     case 'annotation': setBusy(null); onAnnotation(m); break;
@@ -204,6 +214,8 @@ function onModel(m) {
   setBusy(null);
   Object.assign(state, { name: m.name, vertices: m.vertices, triangles: m.triangles, isMesh: m.triangles > 0, bbox: m.bbox, diagonal: m.diagonal,
     symmetryResidual: null, restResidual: null, handles: 0, offsets: null, cells: null, totalCells: null, detections: null, maxDisplacement: 0 });
+  // Frame times are per model: a median carried over from a small model says nothing of a large one.
+  state.frameTimes = []; state.medianFrameMs = null; state.lastFrameMs = null;
   const [lo, hi] = m.bbox;
   const size = hi.map((v, k) => v - lo[k]);
   $('model-info').textContent = `${m.name}\n${m.vertices} ${m.triangles ? 'vertices' : 'points'}, ${m.triangles} triangles\n` +
@@ -255,8 +267,9 @@ function setModelGeometry(pos, index) {
   requestRender();
 }
 
-function frameCamera() {
-  const s = geometry.boundingSphere;
+function frameCamera(sphere) {
+  const s = sphere || geometry.boundingSphere;
+  framedRadius = s.radius;
   orbit.target.copy(s.center);
   camera.near = s.radius / 100; camera.far = s.radius * 100;
   camera.position.copy(s.center).add(new THREE.Vector3(0.55, 0.35, 1).normalize().multiplyScalar(s.radius * 3.3));
@@ -445,7 +458,7 @@ function onDetections(m) {
   overlays.detections.visible = $('show-detections').checked;
   requestRender();
 }
-$('show-detections').onchange = () => { overlays.detections.visible = $('show-detections').checked; requestRender(); };
+$('show-detections').onchange = () => { overlays.detections.visible = $('show-detections').checked && !(state.maxDisplacement > 1e-9); requestRender(); };
 $('load-detections').onclick = () => { setBusy('load_detections'); send({ type: 'load_detections', path: $('detections-path').value }); };
 $('detect').onclick = () => { setBusy('detect'); send({ type: 'detect' }); };
 
@@ -547,6 +560,8 @@ function showRest() {
     if (!material.flatShading) uploadCpuNormals();
   }
   state.meshVersion++;
+  state.maxDisplacement = 0;
+  followDeformation();
   requestRender();
 }
 
@@ -687,6 +702,17 @@ function onDeformed(m) {
     (m.handle_error > HANDLE_LAG && m.residual != null
       ? `\nthe symmetries do not allow this motion: they are kept exact, and the handles lag behind (reset, or drag symmetric handles)`
       : '');
+  followDeformation();
+}
+// The box and grid follow the deformed shape; the detections, found on the undeformed input,
+// are hidden while it is deformed rather than left floating where the model was.
+function followDeformation() {
+  geometry.computeBoundingBox();
+  drawBox();
+  const deformed = state.maxDisplacement > 1e-9;
+  overlays.detections.visible = $('show-detections').checked && !deformed;
+  $('show-detections').title = deformed ? 'hidden while the model is deformed (Reset shows them again)' : '';
+  requestRender();
 }
 function applySnapshot(s) {
   handles = s.map((h) => ({ balls: h.balls.map((b) => ({ ...b })), matrix: h.matrix.clone() }));
@@ -728,10 +754,14 @@ function onOffsets(m) {
   const steps = $('steps');
   steps.replaceChildren();
   if (!m.principal.length) { $('resize-info').textContent = m.summary.startsWith('no repetition') ? m.summary : `no repetition: ${m.summary}`; requestRender(); return; }
-  const origin = geometry.boundingBox.min.clone();
+  // From just outside the box's lower corner, drawn over the model: from the corner itself
+  // they ran inside the model and could only be seen in wireframe.
+  const origin = geometry.boundingBox.min.clone().subScalar(0.04 * (state.diagonal || 1));
   m.principal.forEach((o, k) => {
     const v = new THREE.Vector3(...o);
-    overlays.offsets.add(new THREE.ArrowHelper(v.clone().normalize(), origin, v.length(), palette[k], v.length() * 0.25, v.length() * 0.12));
+    const arrow = new THREE.ArrowHelper(v.clone().normalize(), origin, v.length(), palette[k], v.length() * 0.25, v.length() * 0.12);
+    arrow.traverse((c) => { if (c.material) { c.material.depthTest = false; c.renderOrder = 10; } });
+    overlays.offsets.add(arrow);
     const row = document.createElement('div');
     row.className = 'row';
     row.innerHTML = `<label>offset ${k} (${v.length().toPrecision(3)}) <input type="range" id="step-${k}" min="-3" max="6" step="1" value="0"><span id="step-${k}-value">0</span></label>`;
@@ -754,6 +784,11 @@ function onRetargetedMesh(pos, index, m) {
   g.computeVertexNormals();
   retargetObject = new THREE.Mesh(g, new THREE.MeshStandardMaterial({ color: 0xd9b98c, roughness: 0.7, flatShading: true, side: THREE.DoubleSide }));
   scene.add(retargetObject);
+  // A resized model that outgrows the view is framed again (a shelf grown by several cells ran
+  // off the screen); small changes keep the user's camera.
+  g.computeBoundingSphere();
+  const sph = g.boundingSphere;
+  if (sph.radius > 1.15 * framedRadius || sph.center.distanceTo(orbit.target) > 0.5 * framedRadius) frameCamera(sph);
   object.visible = $('show-original').checked;
   state.cells = m.cells; state.totalCells = m.total_cells; state.retargetVertices = m.vertices; state.retargetVersion++;
   shownSteps = m.steps.slice();
