@@ -140,6 +140,9 @@ const jobName = (job) => JOB_NAMES[job] || job.replace(/_/g, ' ');
 function setBusy(job) {
   state.busy = job;
   $('cancel').disabled = !job;
+  // One job at a time: the other buttons wait for it (a second request used to queue silently
+  // and then drop the first one's result).
+  for (const b of document.querySelectorAll('#side button')) if (b.id !== 'cancel') b.disabled = !!job;
   $('progress').textContent = job ? `${jobName(job)}…` : '';
 }
 

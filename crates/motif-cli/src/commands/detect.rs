@@ -190,8 +190,8 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let mut written: Vec<String> = vec![a.output.display().to_string()];
     written.extend(a.labels.iter().map(|p| format!("{} (labelled points)", p.display())));
     written.extend(a.as_symmetry.iter().map(|p| format!("{} (motif_symmetry_v1)", p.display())));
-    if let Some(p) = a.json.json.as_ref().filter(|p| !crate::output::json_on_stdout(&Some(p.to_path_buf()))) {
-        written.push(format!("{} (report)", p.display()));
+    if !crate::output::json_on_stdout(&a.json.json) {
+        written.extend(a.json.json.iter().map(|p| format!("{} (report)", p.display())));
     }
     maybe_json(
         &a.json.json,
