@@ -469,13 +469,9 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             let d = mesh.aabb().map_or(1.0, |b| b.diagonal());
             let len = |x: f64| motif_core::geometry::format_length(x, d, 4);
             println!(
-                "size: {} x {} x {} (asked {} x {} x {}; whole steps of the offsets)",
-                len(got[0]),
-                len(got[1]),
-                len(got[2]),
-                len(want[0]),
-                len(want[1]),
-                len(want[2])
+                "size: {} (asked {}; whole steps of the offsets)",
+                got.map(len).join(" x "),
+                want.map(len).join(" x ")
             );
         }
         if r.capped_loops + r.filled_holes + r.output_boundary_edges > 0 {
