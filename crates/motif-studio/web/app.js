@@ -461,7 +461,7 @@ function onDetections(m) {
   overlays.detections.visible = $('show-detections').checked;
   requestRender();
 }
-$('show-detections').onchange = () => { overlays.detections.visible = $('show-detections').checked && !(state.maxDisplacement > 1e-9); requestRender(); };
+$('show-detections').onchange = () => { overlays.detections.visible = $('show-detections').checked && !isDeformed(); requestRender(); };
 $('load-detections').onclick = () => { setBusy('load_detections'); send({ type: 'load_detections', path: $('detections-path').value }); };
 $('detect').onclick = () => { setBusy('detect'); send({ type: 'detect' }); };
 
@@ -709,10 +709,11 @@ function onDeformed(m) {
 }
 // The box and grid follow the deformed shape; the detections, found on the undeformed input,
 // are hidden while it is deformed rather than left floating where the model was.
+const isDeformed = () => state.maxDisplacement > 1e-9;
 function followDeformation() {
   geometry.computeBoundingBox();
   drawBox();
-  const deformed = state.maxDisplacement > 1e-9;
+  const deformed = isDeformed();
   overlays.detections.visible = $('show-detections').checked && !deformed;
   $('show-detections').title = deformed ? 'hidden while the model is deformed (Reset shows them again)' : '';
   requestRender();
@@ -756,7 +757,8 @@ function onOffsets(m) {
   state.cells = m.cells; state.totalCells = m.cells.reduce((a, b) => a * b, 1);
   const steps = $('steps');
   steps.replaceChildren();
-  if (!m.principal.length) { $('resize-info').textContent = m.summary.startsWith('no repetition') ? m.summary : `no repetition: ${m.summary}`; requestRender(); return; }
+  // The verdict's summary says "no repetition" itself.
+  if (!m.principal.length) { $('resize-info').textContent = m.summary; requestRender(); return; }
   // From just outside the box's lower corner, drawn over the model: from the corner itself
   // they ran inside the model and could only be seen in wireframe.
   const origin = geometry.boundingBox.min.clone().subScalar(0.04 * (state.diagonal || 1));
