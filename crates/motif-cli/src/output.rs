@@ -112,7 +112,55 @@ pub fn describe(err: &anyhow::Error) -> String {
         }
         msg.push_str(&text);
     }
-    msg
+    plain_os_text(&msg)
+}
+
+/// The operating system's messages in the style of Motif's own: lower case, without the
+/// "(os error N)" suffix (`nope.json: no such file or directory`, as `sparsity` and the file
+/// checks already said, rather than `No such file or directory (os error 2)`).
+fn plain_os_text(msg: &str) -> String {
+    let mut out = String::with_capacity(msg.len());
+    let mut rest = msg;
+    while let Some(i) = rest.find(" (os error ") {
+        let tail = &rest[i + " (os error ".len()..];
+        let digits = tail.bytes().take_while(u8::is_ascii_digit).count();
+        if digits > 0 && tail[digits..].starts_with(')') {
+            out.push_str(&rest[..i]);
+            rest = &tail[digits + 1..];
+        } else {
+            out.push_str(&rest[..i + 1]);
+            rest = &rest[i + 1..];
+        }
+    }
+    out.push_str(rest);
+    for (os, plain) in [
+        ("No such file or directory", "no such file or directory"),
+        ("Permission denied", "permission denied"),
+        ("Is a directory", "is a directory"),
+        ("Not a directory", "not a directory"),
+        ("File exists", "file exists"),
+        ("No space left on device", "no space left on device"),
+        ("Read-only file system", "read-only file system"),
+    ] {
+        out = out.replace(os, plain);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::plain_os_text;
+
+    #[test]
+    fn os_messages_are_written_like_motif_s_own() {
+        assert_eq!(
+            plain_os_text("a.json: No such file or directory (os error 2)"),
+            "a.json: no such file or directory"
+        );
+        assert_eq!(plain_os_text("x: Is a directory (os error 21): y"), "x: is a directory: y");
+        // Text that merely looks similar is kept.
+        assert_eq!(plain_os_text("a (os error x) b"), "a (os error x) b");
+    }
 }
 
 /// 2 when a file could not be read because of what the user named (missing, a directory), 1 for

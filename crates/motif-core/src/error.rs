@@ -17,6 +17,16 @@ pub enum Position {
     Whole,
 }
 
+impl Position {
+    /// `"line 3: "`, `"byte 40: "`, or nothing for the whole file (whose message names it).
+    pub fn prefix(&self) -> String {
+        match self {
+            Position::Whole => String::new(),
+            p => format!("{p}: "),
+        }
+    }
+}
+
 impl fmt::Display for Position {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
@@ -40,7 +50,7 @@ pub enum Error {
         source: std::io::Error,
     },
     /// A file's content is malformed: truncated, wrong magic, indices out of range, NaN, ...
-    #[error("{path}: {position}: {message}")]
+    #[error("{path}: {}{message}", position.prefix())]
     Parse {
         /// The file concerned.
         path: PathBuf,

@@ -210,14 +210,29 @@ pub fn open(shared: &Shared, path: &str, p: &JobProgress) -> Result<Vec<Out>> {
     let model = motif_core::io::read(&file)?;
     let mut inputs = vec![file.clone()];
     let sidecar = file.with_extension("sym.json");
-    let annotation = if sidecar.is_file() && model.is_mesh() {
+    let mut loaded = loaded_from(sandbox.display(&file), Some(file), model);
+    // The annotation beside the model is checked as a loaded one is; one that cannot be read or
+    // does not fit (left from an earlier version of the file) is not loaded, and the model opens
+    // with a warning saying why, rather than failing to open or failing at the first click.
+    let mut annotation = None;
+    if let (true, Some(mesh)) = (sidecar.is_file(), &loaded.mesh) {
+        let name = sandbox.display(&sidecar);
         let sidecar = sandbox.resolve_read(&sidecar.display().to_string())?;
-        inputs.push(sidecar.clone());
-        Some(motif_deform::read_annotation(&sidecar)?)
-    } else {
-        None
-    };
-    let loaded = loaded_from(sandbox.display(&file), Some(file), model);
+        let checked = motif_deform::read_annotation(&sidecar).map_err(|e| e.to_string()).and_then(|a| {
+            let report = check_annotation(mesh, &a).map_err(|e| e.to_string())?;
+            match misfits(&report, &a) {
+                None => Ok(a),
+                Some(problems) => Err(format!("it does not fit this model: {problems}")),
+            }
+        });
+        match checked {
+            Ok(a) => {
+                inputs.push(sidecar);
+                annotation = Some(a);
+            }
+            Err(why) => loaded.model.warnings.push(format!("{name} was not loaded: {why}")),
+        }
+    }
     Ok(install(shared, p, loaded, annotation, inputs))
 }
 
@@ -300,6 +315,26 @@ pub fn detect_symmetry(shared: &Shared, p: &JobProgress) -> Result<Vec<Out>> {
     Ok(vec![Out::Text(msg)])
 }
 
+/// What does not fit when an annotation's check against the mesh failed (`None` when it fits).
+fn misfits(report: &motif_deform::AnnotationReport, annotation: &SymmetryAnnotation) -> Option<String> {
+    if report.ok {
+        return None;
+    }
+    let problems: Vec<String> = report
+        .symmetries
+        .iter()
+        .filter(|c| !c.ok)
+        .map(|c| match &c.problem {
+            Some(problem) => format!("symmetry {:?}: {problem}", c.name),
+            None => format!(
+                "symmetry {:?} moves the surface {:.1e} of the diagonal off itself (tolerance {:.0e})",
+                c.name, c.max_residual, annotation.tolerance
+            ),
+        })
+        .collect();
+    Some(if problems.is_empty() { "the check failed".to_string() } else { problems.join("; ") })
+}
+
 /// Loads a `motif_symmetry_v1` annotation and checks it against the mesh.
 pub fn load_annotation(shared: &Shared, path: &str, p: &JobProgress) -> Result<Vec<Out>> {
     let (loaded, sandbox) = {
@@ -313,25 +348,10 @@ pub fn load_annotation(shared: &Shared, path: &str, p: &JobProgress) -> Result<V
     // An annotation that does not fit the open model (another model's, or an empty region)
     // could only fail later, at the first click: refused here, with what does not fit.
     let report = check_annotation(mesh, &annotation)?;
-    if !report.ok {
-        let problems: Vec<String> = report
-            .symmetries
-            .iter()
-            .filter(|c| !c.ok)
-            .map(|c| match &c.problem {
-                Some(problem) => format!("symmetry {:?}: {problem}", c.name),
-                None => format!(
-                    "symmetry {:?} moves the surface {:.1e} of the diagonal off itself (tolerance {:.0e})",
-                    c.name, c.max_residual, annotation.tolerance
-                ),
-            })
-            .collect();
+    if let Some(problems) = misfits(&report, &annotation) {
         return Err(StudioError::BadPath {
             path: shorten(path),
-            problem: format!(
-                "does not fit the open model, so it was not loaded: {}",
-                if problems.is_empty() { "the check failed".to_string() } else { problems.join("; ") }
-            ),
+            problem: format!("does not fit the open model, so it was not loaded: {problems}"),
         });
     }
     let msg = annotation_message(&report, &annotation, Vec::new(), t)?;

@@ -701,9 +701,31 @@ async fn an_annotation_that_does_not_fit_is_refused_and_an_identical_one_beside_
         .unwrap();
     let fence = motif_core::procedural::generate("fence", 1).unwrap();
     motif_core::io::write_mesh(&s.root.join("f.obj"), &fence.mesh).unwrap();
+    // A stale annotation beside the model (here the windmill's) is not loaded with it: the
+    // model opens without it and says why.
+    std::fs::copy(s.root.join("w.sym.json"), s.root.join("f.sym.json")).unwrap();
     let mut ws = connect(&s.url).await;
     send(&mut ws, json!({"type": "open", "path": "f.obj"})).await;
-    assert!(matches!(next_text(&mut ws).await, ServerMessage::Model { .. }));
+    match next_text(&mut ws).await {
+        ServerMessage::Model { annotation, warnings, .. } => {
+            assert!(annotation.is_none());
+            assert!(
+                warnings.iter().any(|w| w.contains("f.sym.json was not loaded: it does not fit this model")),
+                "{warnings:?}"
+            );
+        }
+        other => panic!("expected the model, got {other:?}"),
+    }
+    // An annotation beside the model that cannot be read does not stop the model opening.
+    std::fs::write(s.root.join("f.sym.json"), "{ not json").unwrap();
+    send(&mut ws, json!({"type": "open", "path": "f.obj"})).await;
+    match next_text(&mut ws).await {
+        ServerMessage::Model { annotation, warnings, .. } => {
+            assert!(annotation.is_none());
+            assert!(warnings.iter().any(|w| w.contains("f.sym.json was not loaded")), "{warnings:?}");
+        }
+        other => panic!("expected the model, got {other:?}"),
+    }
     // The windmill's annotation on the fence: its regions select nothing there. It used to be
     // accepted ("6 symmetries") and fail at the first click.
     send(&mut ws, json!({"type": "load_annotation", "path": "w.sym.json"})).await;

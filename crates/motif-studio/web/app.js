@@ -570,6 +570,9 @@ function showRest() {
 
 function pick(ev) {
   if (!object || !state.isMesh) return;
+  // While a job other than preparing the handles runs, the shape on screen may be about to be
+  // replaced (a model opening, a resize): a handle placed now would belong to the old one.
+  if (state.busy && state.busy !== 'set_handles') { message(`handles wait until ${jobName(state.busy)} is done`); return; }
   const rect = renderer.domElement.getBoundingClientRect();
   const ndc = new THREE.Vector2(((ev.clientX - rect.left) / rect.width) * 2 - 1, -((ev.clientY - rect.top) / rect.height) * 2 + 1);
   const ray = new THREE.Raycaster();

@@ -64,8 +64,14 @@ pub fn detect(a: SymmetryDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 Scope::Global => "global".to_string(),
                 Scope::Part(i) => format!("part {i}"),
             };
+            // Nested partial symmetries of one part (thesis Fig. 3.3: the sails alone, then the
+            // rotor) differ in their regions, so each line says how much of the mesh it holds.
+            let region = match gr.region_faces {
+                Some(n) => format!(" on {n} of {} faces", mesh.num_triangles()),
+                None => String::new(),
+            };
             println!(
-                "{scope:<8} {} ; max residual {:.1e} of the diagonal{}",
+                "{scope:<8} {}{region} ; max residual {:.1e} of the diagonal{}",
                 gr.name,
                 gr.max_residual,
                 if gr.possibly_continuous { " (possibly a surface of revolution)" } else { "" }
