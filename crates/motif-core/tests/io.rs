@@ -102,7 +102,9 @@ fn every_bad_file_is_a_parse_error_with_file_and_position() {
                 if path != file || !text.contains(name) {
                     wrong.push(format!("{name}: the error does not name the file: {text}"));
                 }
-                if position != want_pos || !text.contains(&format!("{}: {}", file.display(), position.prefix())) {
+                if position != want_pos
+                    || !text.contains(&format!("{}: {}", file.display(), position.prefix()))
+                {
                     wrong.push(format!("{name}: position {position:?}, expected {want_pos:?}: {text}"));
                 }
                 if !message.contains(fragment) {
