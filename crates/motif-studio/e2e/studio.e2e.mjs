@@ -134,6 +134,21 @@ try {
   const redone = maxDiff(await page.evaluate(() => window.motif.positions()), dragged);
   check(redone < 1e-4 && st.symmetryResidual < 1e-6, `redo: the drag is back (max distance ${redone.toExponential(1)}, residual ${st.symmetryResidual})`);
 
+  // 1d. Select the first handle by clicking its ball, remove it with Delete, and bring it back
+  // with Ctrl+Z: the drag is kept throughout.
+  await page.keyboard.press('Escape');
+  const ball = await page.evaluate(() => window.motif.handleScreen(0));
+  await page.mouse.click(ball.x, ball.y);
+  const selected = await page.evaluate(() => window.motif.activeHandle());
+  await page.keyboard.press('Delete');
+  st = await until(page, (s) => s.handles === 1 && s.busy === null);
+  const afterDelete = await page.evaluate(() => window.motif.state.undo);
+  await page.keyboard.press('Control+z');
+  st = await until(page, (s) => s.handles === 2 && s.busy === null && s.symmetryResidual !== null);
+  const back = maxDiff(await page.evaluate(() => window.motif.positions()), dragged);
+  check(selected === 0 && afterDelete === st.undo + 1 && back < 1e-4,
+    `a click on a handle selects it (${selected}), Delete removes it, Ctrl+Z brings it back with the drag (max distance ${back.toExponential(1)})`);
+
   // 2. Export the deformed windmill with its annotation: written under the root and downloaded
   // by the browser; the download loads back through the file picker; the export opens again.
   await page.fill('#export-path', 'windmill-deformed.obj');

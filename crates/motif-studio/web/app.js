@@ -497,6 +497,7 @@ function drawHandles() {
       const s = new THREE.Mesh(new THREE.SphereGeometry(b.radius, 16, 12),
         new THREE.MeshBasicMaterial({ color: i === active ? 0xf59e0b : 0x10b981, wireframe: true, transparent: true, opacity: 0.6 }));
       s.position.set(...b.center).applyMatrix4(h.matrix);
+      s.userData.handle = i;
       overlays.handles.add(s);
     }
   });
@@ -577,6 +578,9 @@ function pick(ev) {
   const ndc = new THREE.Vector2(((ev.clientX - rect.left) / rect.width) * 2 - 1, -((ev.clientY - rect.top) / rect.height) * 2 + 1);
   const ray = new THREE.Raycaster();
   ray.setFromCamera(ndc, camera);
+  // A click on a handle's ball selects that handle (the gizmo moves to it; Delete removes it).
+  const onBall = ray.intersectObjects(overlays.handles.children, false)[0];
+  if (onBall && !ev.shiftKey) { selectHandle(onBall.object.userData.handle); return; }
   // Picked on the CPU copy of the current shape (bounds refreshed: drags move them).
   geometry.computeBoundingSphere();
   const hit = ray.intersectObject(pickMesh, false)[0];
@@ -600,6 +604,34 @@ function pick(ev) {
   drawHandles();
   sendHandles();
 }
+function selectHandle(i) {
+  active = i;
+  placeGizmo(); drawHandles();
+}
+// Removes the selected handle; the others keep their targets (an undoable step, as a pick is).
+function deleteHandle() {
+  if (active < 0 || handlesPending || state.busy) return;
+  handles.splice(active, 1);
+  active = handles.length - 1;
+  state.handles = handles.length;
+  undoOnHandles = true;
+  placeGizmo(); drawHandles();
+  sendHandles();
+  if (!handles.length) { pushUndo(); undoOnHandles = false; state.maxDisplacement = 0; $('deform-info').textContent = 'no handles'; }
+}
+$('delete-handle').onclick = deleteHandle;
+// Keyboard shortcuts, as in other editors; not while typing in a field.
+window.addEventListener('keydown', (ev) => {
+  if (ev.target.closest && ev.target.closest('input, select, textarea')) return;
+  const k = ev.key.toLowerCase();
+  if ((ev.ctrlKey || ev.metaKey) && k === 'z') { (ev.shiftKey ? $('redo') : $('undo')).click(); ev.preventDefault(); }
+  else if ((ev.ctrlKey || ev.metaKey) && k === 'y') { $('redo').click(); ev.preventDefault(); }
+  else if (ev.ctrlKey || ev.metaKey || ev.altKey) return;
+  else if (k === 'delete' || k === 'backspace') { deleteHandle(); ev.preventDefault(); }
+  else if (k === 'escape') selectHandle(-1);
+  else if (k === 'g' || k === 't') { $('gizmo-translate').checked = true; gizmo.setMode('translate'); }
+  else if (k === 'r') { $('gizmo-rotate').checked = true; gizmo.setMode('rotate'); }
+});
 let downAt = null;
 renderer.domElement.addEventListener('pointerdown', (ev) => { downAt = gizmo.axis ? null : [ev.clientX, ev.clientY]; });
 renderer.domElement.addEventListener('pointerup', (ev) => {
@@ -814,6 +846,8 @@ window.motif.project = (p) => {
   return { x: rect.left + ((v.x + 1) / 2) * rect.width, y: rect.top + ((1 - v.y) / 2) * rect.height };
 };
 window.motif.restVertex = (i) => [restPositions[3 * i], restPositions[3 * i + 1], restPositions[3 * i + 2]];
+window.motif.activeHandle = () => active;
+window.motif.handleScreen = (i) => window.motif.project(new THREE.Vector3(...handles[i].balls[0].center).applyMatrix4(handles[i].matrix).toArray());
 window.motif.gizmoScreen = () => (active >= 0 ? window.motif.project(gizmoTarget.position.toArray()) : null);
 // The current (deformed) shape as a plain array, and the surface point under a screen position.
 window.motif.positions = () => Array.from(geometry.getAttribute('position').array);
