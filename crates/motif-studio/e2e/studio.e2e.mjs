@@ -218,6 +218,15 @@ try {
   check(st.detections.classes > 0 && st.detections.instances > 0 && st.detections.coloured > 0,
     `detected: ${st.detections.classes} classes, ${st.detections.instances} boxes, ${st.detections.coloured} coloured points`);
   await shot('05b-facade-detected.png');
+  // Saved as a detection result, the same classes and boxes as shown.
+  const savedBefore2 = st.saved.length;
+  await page.fill('#detections-path', 'facade.detect.json');
+  await page.click('#save-detections');
+  st = await until(page, (s, n) => s.saved.length > n && s.busy === null, savedBefore2);
+  const savedResult = JSON.parse(readFileSync(join(root, 'facade.detect.json'), 'utf8'));
+  const savedBoxes = savedResult.classes.reduce((a, c) => a + c.instances.length, 0);
+  check(savedResult.classes.length === st.detections.classes && savedBoxes === st.detections.instances,
+    `detections saved: ${savedResult.classes.length} classes, ${savedBoxes} boxes in facade.detect.json`);
 
   // 5. Symmetry detection on the fan, shown as planes and axes.
   await page.selectOption('#example-select', 'fan');

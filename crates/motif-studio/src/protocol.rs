@@ -174,6 +174,15 @@ pub enum ClientMessage {
     },
     /// Run building-block detection on the current model, with progress; cancellable.
     Detect,
+    /// Write the detections shown (from `Detect` or `LoadDetections`) under the root, as a
+    /// detection result (`../shared/formats/detection.md`, what `motif detect -o` writes).
+    SaveDetections {
+        /// Path under the root (`.json`).
+        path: String,
+        /// Replace an existing file (inputs are never replaced).
+        #[serde(default)]
+        overwrite: bool,
+    },
     /// Cancel the running long computation.
     Cancel,
 }

@@ -255,6 +255,7 @@ fn request_name(m: &ClientMessage) -> &'static str {
         ClientMessage::Retarget { .. } => "retarget",
         ClientMessage::LoadDetections { .. } => "load_detections",
         ClientMessage::Detect => "detect",
+        ClientMessage::SaveDetections { .. } => "save_detections",
         ClientMessage::Cancel => "cancel",
     }
 }
@@ -304,6 +305,9 @@ async fn run_command(cmd: Command, shared: &Shared, out: &Outbox, jobs: &Jobs) {
                 ClientMessage::Offsets => session::offsets(&shared, p),
                 ClientMessage::LoadDetections { path } => session::load_detections(&shared, &path),
                 ClientMessage::Detect => session::detect(&shared, p),
+                ClientMessage::SaveDetections { path, overwrite } => {
+                    session::save_detections(&shared, &path, overwrite)
+                }
                 _ => Ok(Vec::new()),
             },
         }

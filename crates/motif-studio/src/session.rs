@@ -112,6 +112,8 @@ pub struct Session {
     annotation: Option<SymmetryAnnotation>,
     deform: Option<DeformState>,
     retarget: Option<RetargetState>,
+    /// The detections shown on the current model (detected or loaded), for `SaveDetections`.
+    detections: Option<DetectionResult>,
     /// Bumped whenever the model or annotation changes, so a deformation session built without
     /// the lock is installed only if it still matches.
     generation: u64,
@@ -143,6 +145,7 @@ impl Session {
             annotation: None,
             deform: None,
             retarget: None,
+            detections: None,
             generation: 0,
             _count: CountGuard(counter.clone()),
         }
@@ -193,6 +196,7 @@ fn install(
     s.annotation = annotation;
     s.deform = None;
     s.retarget = None;
+    s.detections = None;
     s.generation += 1;
     out
 }
@@ -869,7 +873,40 @@ pub fn load_detections(shared: &Shared, path: &str) -> Result<Vec<Out>> {
     let file = sandbox.resolve_read(path)?;
     let result = DetectionResult::read(&file)?;
     result.validate(&file.display().to_string())?;
-    Ok(vec![Out::Text(detections_message(&loaded, &result))])
+    let msg = detections_message(&loaded, &result);
+    keep_detections(shared, &loaded, result, Some(file));
+    Ok(vec![Out::Text(msg)])
+}
+
+/// Keeps `result` as the current model's detections, unless another model opened meanwhile;
+/// the file it was read from becomes an input (never replaced).
+fn keep_detections(shared: &Shared, loaded: &Arc<Loaded>, result: DetectionResult, input: Option<PathBuf>) {
+    let mut s = lock(shared);
+    if s.loaded.as_ref().is_some_and(|l| Arc::ptr_eq(l, loaded)) {
+        s.detections = Some(result);
+        s.inputs.extend(input);
+    }
+}
+
+/// Writes the current detections as a detection result JSON under the root.
+pub fn save_detections(shared: &Shared, path: &str, overwrite: bool) -> Result<Vec<Out>> {
+    let s = lock(shared);
+    let result = s
+        .detections
+        .as_ref()
+        .ok_or_else(|| StudioError::NotReady("no detections yet: detect or load them".to_string()))?;
+    if !path.to_ascii_lowercase().ends_with(".json") {
+        return Err(StudioError::BadPath {
+            path: shorten(path),
+            problem: "a detection result is a JSON document: name it .json (e.g. model.detect.json)"
+                .to_string(),
+        });
+    }
+    let _writes = writes_lock();
+    let file = s.sandbox.resolve_write(path, &s.inputs)?;
+    check_fresh(&file, path, overwrite)?;
+    result.write(&file)?;
+    Ok(vec![Out::Text(ServerMessage::Saved { paths: vec![s.sandbox.display(&file)] })])
 }
 
 /// Building-block detection of a model (`motif_detect`, thesis chapter 5): the one place the
@@ -908,5 +945,7 @@ pub fn detect(shared: &Shared, p: &JobProgress) -> Result<Vec<Out>> {
     };
     let result = detect_building_blocks(&loaded.model, &loaded.name, seed, p)?;
     p.check();
-    Ok(vec![Out::Text(detections_message(&loaded, &result))])
+    let msg = detections_message(&loaded, &result);
+    keep_detections(shared, &loaded, result, None);
+    Ok(vec![Out::Text(msg)])
 }

@@ -448,6 +448,9 @@ async fn detections_load_from_a_result_file() {
     let mut ws = connect(&s.url).await;
     send(&mut ws, json!({"type": "open", "path": "facade.ply"})).await;
     assert!(matches!(next_text(&mut ws).await, ServerMessage::Model { .. }));
+    // Nothing to save before detections are shown.
+    send(&mut ws, json!({"type": "save_detections", "path": "saved.json"})).await;
+    expect_error(next_text(&mut ws).await, "no detections yet");
     send(&mut ws, json!({"type": "load_detections", "path": "RESULT.json"})).await;
     match next_text(&mut ws).await {
         ServerMessage::Detections { classes, point_class, .. } => {
@@ -457,6 +460,21 @@ async fn detections_load_from_a_result_file() {
         }
         other => panic!("expected detections, got {other:?}"),
     }
+    // The detections shown are saved as a result that reads back equal; not under a model's
+    // extension, and not over the file they were loaded from.
+    send(&mut ws, json!({"type": "save_detections", "path": "saved.json"})).await;
+    match next_text(&mut ws).await {
+        ServerMessage::Saved { paths } => assert_eq!(paths, vec!["saved.json"]),
+        other => panic!("expected saved, got {other:?}"),
+    }
+    let loaded = motif_detect::DetectionResult::read(&s.root.join("RESULT.json")).unwrap();
+    let saved = motif_detect::DetectionResult::read(&s.root.join("saved.json")).unwrap();
+    assert_eq!(serde_json::to_value(&saved).unwrap(), serde_json::to_value(&loaded).unwrap());
+    send(&mut ws, json!({"type": "save_detections", "path": "saved.ply"})).await;
+    expect_error(next_text(&mut ws).await, "name it .json");
+    send(&mut ws, json!({"type": "save_detections", "path": "RESULT.json", "overwrite": true})).await;
+    assert!(matches!(next_text(&mut ws).await, ServerMessage::Error { .. }));
+    assert!(!s.root.join("saved.ply").exists());
     send(&mut ws, json!({"type": "load_detections", "path": "broken.json"})).await;
     assert!(matches!(next_text(&mut ws).await, ServerMessage::Error { .. }));
     // The detector itself, cancelled: a cancel reply (or the result, if it was quicker).

@@ -133,7 +133,7 @@ function message(text, isError = false) {
 const JOB_NAMES = {
   detect: 'detecting building blocks', detect_symmetry: 'detecting symmetry', example: 'generating the example',
   export: 'exporting', load_annotation: 'loading the annotation', load_detections: 'loading detections',
-  offsets: 'finding offsets', open: 'opening', save_annotation: 'saving the annotation',
+  offsets: 'finding offsets', open: 'opening', save_annotation: 'saving the annotation', save_detections: 'saving the detections',
   set_handles: 'preparing the handles', upload: 'uploading', retarget: 'resizing',
 };
 const jobName = (job) => JOB_NAMES[job] || job.replace(/_/g, ' ');
@@ -464,6 +464,12 @@ function onDetections(m) {
 $('show-detections').onchange = () => { overlays.detections.visible = $('show-detections').checked && !isDeformed(); requestRender(); };
 $('load-detections').onclick = () => { setBusy('load_detections'); send({ type: 'load_detections', path: $('detections-path').value }); };
 $('detect').onclick = () => { setBusy('detect'); send({ type: 'detect' }); };
+$('save-detections').onclick = () => {
+  // An empty field names the file after the model (STEM.detect.json), as an export does.
+  if (!$('detections-path').value) $('detections-path').value = (state.name || 'model').replace(/^.*\//, '').replace(/\.[^.]*$/, '') + '.detect.json';
+  setBusy('save_detections');
+  send({ type: 'save_detections', path: $('detections-path').value, overwrite: $('overwrite').checked });
+};
 
 // ---------------------------------------------------------------------------------------------
 // Deform: handles are unions of balls on the rest shape; each has a rest→target transform.
