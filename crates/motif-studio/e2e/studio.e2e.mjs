@@ -227,6 +227,11 @@ try {
   const savedBoxes = savedResult.classes.reduce((a, c) => a + c.instances.length, 0);
   check(savedResult.classes.length === st.detections.classes && savedBoxes === st.detections.instances,
     `detections saved: ${savedResult.classes.length} classes, ${savedBoxes} boxes in facade.detect.json`);
+  // The path fields offer the files under the root, the one just saved among them.
+  st = await until(page, (s) => s.files !== null && s.files.json.includes('facade.detect.json'));
+  const offered = await page.evaluate(() => [...document.querySelectorAll('#model-files option')].map((o) => o.value));
+  check(offered.includes('facade.obj') && offered.includes('facade_scan.ply'),
+    `the path fields offer the files under the root (${offered.length} models, ${st.files.json.length} JSON documents)`);
 
   // 5. Symmetry detection on the fan, shown as planes and axes.
   await page.selectOption('#example-select', 'fan');

@@ -183,6 +183,8 @@ pub enum ClientMessage {
         #[serde(default)]
         overwrite: bool,
     },
+    /// List the model files and JSON documents under the root (for the page's path fields).
+    ListFiles,
     /// Cancel the running long computation.
     Cancel,
 }
@@ -291,6 +293,15 @@ pub enum ServerMessage {
         ok: bool,
         /// Milliseconds spent.
         ms: f64,
+    },
+    /// The files under the root ([`ClientMessage::ListFiles`]), relative paths, sorted.
+    Files {
+        /// Meshes and point clouds Motif reads (by extension).
+        models: Vec<String>,
+        /// JSON documents (annotations, detection results, ground truth, reports).
+        json: Vec<String>,
+        /// True when the listing stopped at its limit (deep or very large folders).
+        truncated: bool,
     },
     /// A file was written.
     Saved {

@@ -16,6 +16,11 @@ pub struct Sandbox {
     root: PathBuf,
 }
 
+/// Folder depth of [`Sandbox::list`] (the root is depth 0).
+pub const LIST_DEPTH: usize = 4;
+/// Most files [`Sandbox::list`] returns.
+pub const LIST_FILES: usize = 5000;
+
 /// Longest path string accepted from a client, bytes.
 const MAX_PATH_LEN: usize = 4096;
 
@@ -33,6 +38,42 @@ impl Sandbox {
     /// The canonical root.
     pub fn root(&self) -> &Path {
         &self.root
+    }
+
+    /// Files under the root, relative paths sorted, for which `keep` is true: folders at most
+    /// [`LIST_DEPTH`] deep, without hidden folders, `target` and `node_modules`, and without
+    /// following symbolic links to folders (a listing never leaves the root); at most
+    /// [`LIST_FILES`] files. The flag is true when a limit cut the listing short.
+    pub fn list(&self, keep: impl Fn(&Path) -> bool) -> (Vec<PathBuf>, bool) {
+        let mut out = Vec::new();
+        let mut truncated = false;
+        let mut stack = vec![(self.root.clone(), 0usize)];
+        while let Some((dir, depth)) = stack.pop() {
+            let Ok(entries) = std::fs::read_dir(&dir) else { continue };
+            for entry in entries.flatten() {
+                let path = entry.path();
+                let name = entry.file_name().to_string_lossy().into_owned();
+                let Ok(kind) = entry.file_type() else { continue };
+                if kind.is_dir() {
+                    if name.starts_with('.') || name == "target" || name == "node_modules" {
+                        continue;
+                    }
+                    if depth + 1 < LIST_DEPTH {
+                        stack.push((path, depth + 1));
+                    } else {
+                        truncated = true;
+                    }
+                } else if (kind.is_file() || (kind.is_symlink() && path.is_file())) && keep(&path) {
+                    if out.len() == LIST_FILES {
+                        truncated = true;
+                        break;
+                    }
+                    out.push(path.strip_prefix(&self.root).unwrap_or(&path).to_path_buf());
+                }
+            }
+        }
+        out.sort();
+        (out, truncated)
     }
 
     fn check_text(path: &str) -> Result<()> {

@@ -256,6 +256,7 @@ fn request_name(m: &ClientMessage) -> &'static str {
         ClientMessage::LoadDetections { .. } => "load_detections",
         ClientMessage::Detect => "detect",
         ClientMessage::SaveDetections { .. } => "save_detections",
+        ClientMessage::ListFiles => "list_files",
         ClientMessage::Cancel => "cancel",
     }
 }
@@ -305,6 +306,7 @@ async fn run_command(cmd: Command, shared: &Shared, out: &Outbox, jobs: &Jobs) {
                 ClientMessage::Offsets => session::offsets(&shared, p),
                 ClientMessage::LoadDetections { path } => session::load_detections(&shared, &path),
                 ClientMessage::Detect => session::detect(&shared, p),
+                ClientMessage::ListFiles => session::list_files(&shared),
                 ClientMessage::SaveDetections { path, overwrite } => {
                     session::save_detections(&shared, &path, overwrite)
                 }

@@ -888,6 +888,20 @@ fn keep_detections(shared: &Shared, loaded: &Arc<Loaded>, result: DetectionResul
     }
 }
 
+/// The model files and JSON documents under the root.
+pub fn list_files(shared: &Shared) -> Result<Vec<Out>> {
+    let sandbox = lock(shared).sandbox.clone();
+    let (files, truncated) = sandbox.list(|p| {
+        Format::from_path(p).is_ok() || p.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"))
+    });
+    let (mut models, mut json) = (Vec::new(), Vec::new());
+    for f in files {
+        let text = f.display().to_string();
+        if Format::from_path(&f).is_ok() { models.push(text) } else { json.push(text) }
+    }
+    Ok(vec![Out::Text(ServerMessage::Files { models, json, truncated })])
+}
+
 /// Writes the current detections as a detection result JSON under the root.
 pub fn save_detections(shared: &Shared, path: &str, overwrite: bool) -> Result<Vec<Out>> {
     let s = lock(shared);

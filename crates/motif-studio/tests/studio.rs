@@ -772,3 +772,29 @@ async fn an_annotation_that_does_not_fit_is_refused_and_an_identical_one_beside_
     expect_error(next_text(&mut ws).await, "name it .json");
     assert!(!s.root.join("f2.obj").exists());
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_files_under_the_root_are_listed_for_the_path_fields() {
+    let s = start().await;
+    let shelf = motif_core::procedural::generate("shelf", 1).unwrap();
+    std::fs::create_dir_all(s.root.join("scans/deep/er/still")).unwrap();
+    std::fs::create_dir_all(s.root.join(".hidden")).unwrap();
+    motif_core::io::write_mesh(&s.root.join("shelf.obj"), &shelf.mesh).unwrap();
+    motif_core::io::write_mesh(&s.root.join("scans/a.PLY"), &shelf.mesh).unwrap();
+    motif_core::io::write_mesh(&s.root.join(".hidden/b.obj"), &shelf.mesh).unwrap();
+    motif_core::io::write_mesh(&s.root.join("scans/deep/er/still/c.obj"), &shelf.mesh).unwrap();
+    std::fs::write(s.root.join("shelf.sym.json"), "{}").unwrap();
+    std::fs::write(s.root.join("notes.txt"), "not listed").unwrap();
+    let mut ws = connect(&s.url).await;
+    send(&mut ws, json!({"type": "list_files"})).await;
+    match next_text(&mut ws).await {
+        ServerMessage::Files { models, json, truncated } => {
+            // Hidden folders are skipped and the listing stops four folders deep.
+            // (`start` writes fan.obj; the others are this test's.)
+            assert_eq!(models, vec!["fan.obj", "scans/a.PLY", "shelf.obj"]);
+            assert_eq!(json, vec!["shelf.sym.json"]);
+            assert!(truncated);
+        }
+        other => panic!("expected the files, got {other:?}"),
+    }
+}

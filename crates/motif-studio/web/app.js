@@ -16,7 +16,7 @@ const state = {
   maxDisplacement: 0, lastFrameMs: null, medianFrameMs: null, lastSolveMs: null, framesReceived: 0,
   frameTimes: [], frameLog: [], annotation: null, offsets: null, cells: null, totalCells: null, retargetVersion: 0,
   retargetVertices: 0, detections: null, busy: null, progress: null, saved: [], errors: [], released: 0,
-  undo: 0, redo: 0, downloads: [], renderer: null, handleTransforms: [], progressLog: [],
+  undo: 0, redo: 0, downloads: [], renderer: null, handleTransforms: [], progressLog: [], files: null,
 };
 window.motif = { state };
 
@@ -151,6 +151,13 @@ function onText(m) {
     case 'hello':
       $('example-select').replaceChildren(...m.examples.map((n) => new Option(n, n)));
       $('example-select').value = 'windmill';
+      send({ type: 'list_files' });
+      break;
+    // The files under the root, offered as completions of the path fields.
+    case 'files':
+      state.files = { models: m.models, json: m.json, truncated: m.truncated };
+      $('model-files').replaceChildren(...m.models.map((f) => new Option(f)));
+      $('json-files').replaceChildren(...m.json.map((f) => new Option(f)));
       break;
     case 'model': onModel(m); break;
     case 'progress':
@@ -165,7 +172,7 @@ function onText(m) {
       if (m.job === 'set_handles') handlesFailed();
       break;
     case 'annotation': setBusy(null); onAnnotation(m); break;
-    case 'saved': setBusy(null); state.saved.push(...m.paths); message(`wrote ${m.paths.join(', ')}`); break;
+    case 'saved': setBusy(null); state.saved.push(...m.paths); message(`wrote ${m.paths.join(', ')}`); send({ type: 'list_files' }); break;
     case 'handles': onHandles(m); break;
     case 'deformed': onDeformed(m); break;
     case 'offsets': setBusy(null); onOffsets(m); break;
