@@ -781,10 +781,14 @@ pub struct BenchDetectArgs {
     /// them, for every method).
     #[arg(long)]
     pub per_class: bool,
-    /// EM + SC on the medium scenes (or the first level run): mean PR curve, stress curve and
-    /// per-class shares of located and credited instances (PNG).
+    /// The table as a picture (PNG): mean F per difficulty and method with its standard error,
+    /// beside the thesis's figure and the target, and the stress curves of every row.
     #[arg(long, value_name = "PNG")]
     pub plot: Option<PathBuf>,
+    /// EM + SC on the medium scenes (or the first level run): mean PR curve, stress curve and
+    /// per-class shares of located and credited instances (PNG, as `motif eval --plot`).
+    #[arg(long, value_name = "PNG")]
+    pub plot_detail: Option<PathBuf>,
     #[command(flatten)]
     pub json: JsonArg,
 }

@@ -227,10 +227,19 @@ pub fn rotation_about_axis(axis: Point3, angle: f64) -> [[f64; 3]; 3] {
 /// zeros (or one 10⁹ across with twelve digits before the point).
 pub fn format_length(x: f64, scale: f64, decimals: usize) -> String {
     let scale = scale.abs();
-    if scale == 0.0 || (1e-3..=1e6).contains(&scale) || !scale.is_finite() {
+    let text = if scale == 0.0 || (1e-3..=1e6).contains(&scale) || !scale.is_finite() {
         format!("{x:.decimals$}")
     } else {
         format!("{x:.decimals$e}")
+    };
+    // A tiny negative rounds to "-0.000000": printed as the zero it is.
+    match text.strip_prefix('-') {
+        Some(rest)
+            if rest.split(['e', 'E']).next().is_some_and(|m| m.chars().all(|c| c == '0' || c == '.')) =>
+        {
+            rest.to_string()
+        }
+        _ => text,
     }
 }
 
@@ -299,6 +308,11 @@ mod tests {
         assert_eq!(format_length(4.2e-10, 1e-9, 4), "4.2000e-10");
         assert_eq!(format_length(4.2e8, 1e9, 2), "4.20e8");
         assert_eq!(format_length(0.0, 0.0, 3), "0.000");
+        // A tiny negative is the zero it rounds to, not "-0.000".
+        assert_eq!(format_length(-3e-9, 1.0, 3), "0.000");
+        assert_eq!(format_length(-0.25, 1.0, 2), "-0.25");
+        assert_eq!(format_length(-0.0, 1e-9, 2), "0.00e0");
+        assert_eq!(format_length(-1e-20, 1e-9, 2), "-1.00e-20");
     }
 
     #[test]

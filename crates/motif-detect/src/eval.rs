@@ -232,9 +232,11 @@ pub struct EvalSummary {
     pub recall: f64,
     /// Mean of the per-scene F-measures (not the F of the mean P and R).
     pub f: f64,
-    /// Mean PR curve: `(classes removed, mean precision, mean recall)` for 0 ..= max |𝐃| removed.
-    /// Indexed by the number of removed classes because scenes have different class counts; a
-    /// scene with fewer classes contributes its last point (no class left) beyond its end.
+    /// Mean PR curve: `(classes removed, mean precision, mean recall)` for 0 .. max |𝐃| removed.
+    /// Indexed by the number of removed classes because scenes have different class counts;
+    /// each point is the mean over the scenes that still have a class left (a scene's point with
+    /// none left has no precision; counting it as 0 once dragged the mean precision at low
+    /// recall to 0.43–0.50 where every scene's was 1).
     pub mean_pr_curve: Vec<(usize, f64, f64)>,
     /// Mean stress curve: `(τ, mean F)`.
     pub mean_stress: Vec<(f64, f64)>,
@@ -465,10 +467,12 @@ pub fn evaluate_many<'a>(
     let mean = |f: &dyn Fn(&EvalReport) -> f64| scenes.iter().map(f).sum::<f64>() / n;
 
     let max_classes = scenes.iter().map(|s| s.detected_classes).max().unwrap_or(0);
-    let mean_pr_curve = (0..=max_classes)
+    let mean_pr_curve = (0..max_classes)
         .map(|removed| {
-            let point = |s: &EvalReport| s.pr_curve[removed.min(s.pr_curve.len() - 1)];
-            (removed, mean(&|s| point(s).1), mean(&|s| point(s).2))
+            let left: Vec<(usize, f64, f64)> =
+                scenes.iter().filter(|s| removed < s.detected_classes).map(|s| s.pr_curve[removed]).collect();
+            let k = left.len() as f64;
+            (removed, left.iter().map(|p| p.1).sum::<f64>() / k, left.iter().map(|p| p.2).sum::<f64>() / k)
         })
         .collect();
     let taus = options.stress_taus();

@@ -58,7 +58,7 @@ pub use eval::{
     evaluate, evaluate_many,
 };
 pub use pipeline::{DetectOptions, DetectReport, Detection, Method, detect, detect_mesh};
-pub use plot::{EvalCurves, plot_pr_and_stress};
+pub use plot::{BenchRow, EvalCurves, plot_bench, plot_pr_and_stress, plot_pr_and_stress_titled};
 pub use rigid_icp::{ClassCompetition, RigidIcpOptions, RigidIcpReport, rigid_icp};
 pub use scenes::{Difficulty, Scene, SceneKind, SceneOptions, generate_scene};
 

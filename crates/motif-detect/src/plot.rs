@@ -36,8 +36,12 @@ fn plot_err(path: &Path, e: impl std::fmt::Display) -> DetectError {
 pub trait EvalCurves {
     /// The picture's title.
     fn title(&self) -> String;
-    /// PR curve points as `(recall, precision)`, all classes first.
-    fn pr_points(&self) -> Vec<(f64, f64)>;
+    /// PR curve points as `(label, recall, precision)`, all classes first, without the point
+    /// with no class left (its precision is undefined). The label, if any, is drawn beside
+    /// the point.
+    fn pr_points(&self) -> Vec<(Option<String>, f64, f64)>;
+    /// The overlap threshold τ the figures are for (marked on the stress curve).
+    fn tau(&self) -> f64;
     /// Stress curve points as `(τ, F)`.
     fn stress_points(&self) -> Vec<(f64, f64)>;
     /// Per annotated class: instances, located, credited (summed over the scenes).
@@ -51,8 +55,16 @@ impl EvalCurves for EvalReport {
             self.scene, self.precision, self.recall, self.f, self.tau
         )
     }
-    fn pr_points(&self) -> Vec<(f64, f64)> {
-        self.pr_curve.iter().map(|&(_, p, r)| (r, p)).collect()
+    fn pr_points(&self) -> Vec<(Option<String>, f64, f64)> {
+        // Labelled with the number of classes kept.
+        self.pr_curve
+            .iter()
+            .filter(|&&(kept, _, _)| kept > 0)
+            .map(|&(kept, p, r)| (Some(kept.to_string()), r, p))
+            .collect()
+    }
+    fn tau(&self) -> f64 {
+        self.tau
     }
     fn stress_points(&self) -> Vec<(f64, f64)> {
         self.stress.clone()
@@ -76,8 +88,20 @@ impl EvalCurves for EvalSummary {
             self.options.tau
         )
     }
-    fn pr_points(&self) -> Vec<(f64, f64)> {
-        self.mean_pr_curve.iter().map(|&(_, p, r)| (r, p)).collect()
+    fn pr_points(&self) -> Vec<(Option<String>, f64, f64)> {
+        if let [scene] = self.scenes.as_slice() {
+            return scene.pr_points();
+        }
+        // Labelled with the number of classes removed (scenes differ in how many they have).
+        self.mean_pr_curve
+            .iter()
+            .map(|&(removed, p, r)| {
+                (Some(if removed == 0 { "all".to_string() } else { format!("−{removed}") }), r, p)
+            })
+            .collect()
+    }
+    fn tau(&self) -> f64 {
+        self.options.tau
     }
     fn stress_points(&self) -> Vec<(f64, f64)> {
         self.mean_stress.clone()
@@ -90,37 +114,59 @@ impl EvalCurves for EvalSummary {
 /// Draws the PR curve (left), the stress curve (middle) and the per-class shares (right) of
 /// `curves` to `path` (PNG, 1800 × 560 pixels).
 pub fn plot_pr_and_stress(curves: &impl EvalCurves, path: &Path) -> Result<()> {
+    plot_pr_and_stress_titled(curves, &curves.title(), path)
+}
+
+/// [`plot_pr_and_stress`] under another title (what was run, for a benchmark's picture).
+pub fn plot_pr_and_stress_titled(curves: &impl EvalCurves, title: &str, path: &Path) -> Result<()> {
     register_fonts();
     let size = (1800u32, 560u32);
     let mut buf = vec![255u8; size.0 as usize * size.1 as usize * 3];
     {
         let root = BitMapBackend::with_buffer(&mut buf, size).into_drawing_area();
         root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
-        let root = root.titled(&curves.title(), (FONT, 20)).map_err(|e| plot_err(path, e))?;
+        let root = root.titled(title, (FONT, 20)).map_err(|e| plot_err(path, e))?;
         let (left, rest) = root.split_horizontally(size.0 / 3);
         let (right, classes) = rest.split_horizontally(size.0 / 3);
         let pr_colour = RGBColor(214, 39, 40);
+        let pr = curves.pr_points();
+        let pr_caption = if pr.iter().any(|(l, _, _)| l.as_deref().is_some_and(|l| l.starts_with('−'))) {
+            "(a) PR curve: largest classes removed one by one (−k: k removed)"
+        } else {
+            "(a) PR curve: largest classes removed one by one (k: classes kept)"
+        };
+        let points: Vec<(f64, f64)> = pr.iter().map(|&(_, r, p)| (r, p)).collect();
+        let labels: Vec<Option<String>> = pr.iter().map(|(l, _, _)| l.clone()).collect();
+        let note = points.is_empty().then_some("no detected class");
         draw_curve(
             &left,
-            &curves.pr_points(),
-            "(a) PR curve",
+            &points,
+            &labels,
+            pr_caption,
             "recall",
             "precision",
             (0.0, 1.0),
             pr_colour,
+            None,
+            note,
             path,
         )?;
         let stress = curves.stress_points();
         let tau_max = stress.iter().map(|p| p.0).fold(0.0, f64::max).max(1e-6);
         let stress_colour = RGBColor(31, 119, 180);
+        let none: Vec<Option<String>> = vec![None; stress.len()];
+        let all_zero = stress.iter().all(|p| p.1 == 0.0);
         draw_curve(
             &right,
             &stress,
-            "(b) stress test",
-            "tau (min. overlap)",
+            &none,
+            "(b) stress test: F as the overlap required rises",
+            "τ (least overlap of a detected and an annotated box)",
             "F",
             (0.0, tau_max),
             stress_colour,
+            Some(curves.tau()),
+            all_zero.then_some("F = 0 at every τ"),
             path,
         )?;
         draw_class_shares(&classes, &curves.annotated(), path)?;
@@ -129,14 +175,21 @@ pub fn plot_pr_and_stress(curves: &impl EvalCurves, path: &Path) -> Result<()> {
     motif_core::io::write_png_rgb(path, size.0, size.1, &buf).map_err(|e| plot_err(path, e))
 }
 
+/// One curve with its points; `labels[i]` beside point i; the first point (the operating point:
+/// every class kept) drawn larger; `mark` a dashed vertical line with the curve's value there
+/// (the τ the figures are for); `note` a message in the middle (an empty or all-zero curve).
+#[allow(clippy::too_many_arguments)]
 fn draw_curve(
     area: &DrawingArea<BitMapBackend, Shift>,
     points: &[(f64, f64)],
+    labels: &[Option<String>],
     caption: &str,
     x_desc: &str,
     y_desc: &str,
     x_range: (f64, f64),
     colour: RGBColor,
+    mark: Option<f64>,
+    note: Option<&str>,
     path: &Path,
 ) -> Result<()> {
     let mut chart = ChartBuilder::on(area)
@@ -161,6 +214,48 @@ fn draw_curve(
     chart
         .draw_series(points.iter().map(|&p| Circle::new(p, 3, colour.filled())))
         .map_err(|e| plot_err(path, e))?;
+    let dx = 0.012 * (x_range.1 - x_range.0);
+    chart
+        .draw_series(points.iter().zip(labels).filter_map(|(&(x, y), l)| {
+            l.as_ref()
+                .map(|l| Text::new(l.clone(), (x + dx, y + 0.035), (FONT, 12).into_font().color(&colour)))
+        }))
+        .map_err(|e| plot_err(path, e))?;
+    if mark.is_none()
+        && let Some(&first) = points.first()
+    {
+        chart
+            .draw_series(std::iter::once(Circle::new(first, 7, colour.stroke_width(2))))
+            .map_err(|e| plot_err(path, e))?;
+    }
+    if let Some(at) = mark {
+        let grey = RGBColor(90, 90, 90);
+        chart
+            .draw_series(DashedLineSeries::new(vec![(at, 0.0), (at, 1.02)], 6, 4, grey.stroke_width(1)))
+            .map_err(|e| plot_err(path, e))?;
+        // The curve's value at `at`, interpolated between its points.
+        let value = points.windows(2).find(|w| w[0].0 <= at && at <= w[1].0).map(|w| {
+            let t = if w[1].0 > w[0].0 { (at - w[0].0) / (w[1].0 - w[0].0) } else { 0.0 };
+            w[0].1 + t * (w[1].1 - w[0].1)
+        });
+        let text = match value {
+            Some(v) => format!("τ = {at} (F {v:.3})"),
+            None => format!("τ = {at}"),
+        };
+        chart
+            .draw_series(std::iter::once(Text::new(
+                text,
+                (at + dx, 0.08),
+                (FONT, 13).into_font().color(&grey),
+            )))
+            .map_err(|e| plot_err(path, e))?;
+    }
+    if let Some(note) = note {
+        let mid = (x_range.0 + 0.3 * (x_range.1 - x_range.0), 0.55);
+        chart
+            .draw_series(std::iter::once(Text::new(note.to_string(), mid, (FONT, 16).into_font())))
+            .map_err(|e| plot_err(path, e))?;
+    }
     Ok(())
 }
 
@@ -235,4 +330,215 @@ fn draw_class_shares(
         }))
         .map_err(|e| plot_err(path, e))?;
     Ok(())
+}
+
+/// One row of `motif bench detect`: a method on the scenes of one difficulty.
+#[derive(Debug, Clone)]
+pub struct BenchRow {
+    /// "easy", "medium" or "hard".
+    pub difficulty: String,
+    /// "EM + SC", "SC (no EM)" or "rigid ICP (supervised)".
+    pub method: String,
+    /// Mean F over the scenes.
+    pub f: f64,
+    /// Its standard error (`None` for one scene).
+    pub f_se: Option<f64>,
+    /// Mean stress curve `(τ, F)`.
+    pub stress: Vec<(f64, f64)>,
+}
+
+/// The benchmark's picture (`motif bench detect --plot PNG`, 1800 × 620 pixels): (a) mean F per
+/// difficulty and method as grouped bars with ±1 standard error, with the thesis's street-scan
+/// figures and the target as lines; (b) the stress curves, one colour per method, one
+/// dash per difficulty; (c) the PR and class panels of `detail` (EM + SC on the medium scenes)
+/// are left to `plot_pr_and_stress`, since one picture per level would repeat them.
+pub fn plot_bench(rows: &[BenchRow], title: &str, tau: f64, path: &Path) -> Result<()> {
+    register_fonts();
+    let size = (1600u32, 620u32);
+    let mut buf = vec![255u8; size.0 as usize * size.1 as usize * 3];
+    let methods: Vec<&str> = unique(rows.iter().map(|r| r.method.as_str()));
+    let levels: Vec<&str> = unique(rows.iter().map(|r| r.difficulty.as_str()));
+    let colours = [RGBColor(214, 39, 40), RGBColor(31, 119, 180), RGBColor(120, 120, 120)];
+    let colour = |m: &str| colours[methods.iter().position(|x| *x == m).unwrap_or(0) % colours.len()];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, size).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
+        let root = root.titled(title, (FONT, 20)).map_err(|e| plot_err(path, e))?;
+        let (left, right) = root.split_horizontally(size.0 / 2);
+
+        // (a) grouped bars.
+        let groups = levels.len().max(1) as f64;
+        let width = 0.8 / methods.len().max(1) as f64;
+        let mut chart = ChartBuilder::on(&left)
+            .caption(
+                format!("(a) mean F at τ = {tau}, ±1 standard error over the scenes"),
+                (FONT, 18).into_font(),
+            )
+            .margin(16)
+            .x_label_area_size(40)
+            .y_label_area_size(50)
+            .build_cartesian_2d(-0.5..groups - 0.5, 0.0..TOP)
+            .map_err(|e| plot_err(path, e))?;
+        chart
+            .configure_mesh()
+            .disable_x_mesh()
+            .x_labels(levels.len().max(1))
+            .x_label_formatter(&|x| {
+                let k = x.round();
+                if (x - k).abs() < 1e-6 && k >= 0.0 {
+                    levels.get(k as usize).unwrap_or(&"").to_string()
+                } else {
+                    String::new()
+                }
+            })
+            .y_desc("F")
+            // The band above 1 holds the legend.
+            .y_label_formatter(&|y| if *y <= 1.0 + 1e-9 { format!("{y:.1}") } else { String::new() })
+            .label_style((FONT, 14))
+            .axis_desc_style((FONT, 14))
+            .light_line_style(RGBColor(235, 235, 235))
+            .draw()
+            .map_err(|e| plot_err(path, e))?;
+        // Reference lines (the thesis's EM + SC on street scans, and the target), named in the
+        // legend band above the bars.
+        let references = [
+            (0.74, "thesis EM + SC, street scans (0.74)", RGBColor(110, 110, 110)),
+            (0.80, "target (0.80)", RGBColor(40, 140, 60)),
+        ];
+        for (k, (y, text, c)) in references.into_iter().enumerate() {
+            chart
+                .draw_series(DashedLineSeries::new(
+                    vec![(-0.5, y), (groups - 0.5, y)],
+                    6,
+                    4,
+                    c.stroke_width(2),
+                ))
+                .map_err(|e| plot_err(path, e))?;
+            let (x, ly) = (-0.45 + k as f64 * 0.45 * groups, TOP - 0.13);
+            chart
+                .draw_series(std::iter::once(
+                    EmptyElement::at((x, ly))
+                        + PathElement::new(vec![(0, 0), (8, 0)], c.stroke_width(2))
+                        + PathElement::new(vec![(12, 0), (20, 0)], c.stroke_width(2))
+                        + Text::new(text, (26, -8), (FONT, 13).into_font()),
+                ))
+                .map_err(|e| plot_err(path, e))?;
+        }
+        for r in rows {
+            let (Some(g), Some(m)) =
+                (levels.iter().position(|l| *l == r.difficulty), methods.iter().position(|x| *x == r.method))
+            else {
+                continue;
+            };
+            let x0 = g as f64 - 0.4 + m as f64 * width;
+            let c = colour(&r.method);
+            chart
+                .draw_series(std::iter::once(Rectangle::new(
+                    [(x0 + 0.02, 0.0), (x0 + width - 0.02, r.f)],
+                    c.filled(),
+                )))
+                .map_err(|e| plot_err(path, e))?;
+            if let Some(se) = r.f_se {
+                let xm = x0 + 0.5 * width;
+                chart
+                    .draw_series(std::iter::once(PathElement::new(
+                        vec![(xm, (r.f - se).max(0.0)), (xm, (r.f + se).min(1.0))],
+                        BLACK.stroke_width(2),
+                    )))
+                    .map_err(|e| plot_err(path, e))?;
+            }
+            chart
+                .draw_series(std::iter::once(Text::new(
+                    format!("{:.2}", r.f),
+                    (x0 + 0.03, r.f + r.f_se.unwrap_or(0.0) + 0.045),
+                    (FONT, 12).into_font(),
+                )))
+                .map_err(|e| plot_err(path, e))?;
+        }
+        for (m, name) in methods.iter().enumerate() {
+            let c = colour(name);
+            let (x, y) = (-0.45 + m as f64 * 0.3 * groups, TOP - 0.05);
+            chart
+                .draw_series(std::iter::once(
+                    EmptyElement::at((x, y)) + Rectangle::new([(0, -6), (14, 6)], c.filled()),
+                ))
+                .map_err(|e| plot_err(path, e))?;
+            chart
+                .draw_series(std::iter::once(
+                    EmptyElement::at((x, y)) + Text::new(name.to_string(), (20, -8), (FONT, 13).into_font()),
+                ))
+                .map_err(|e| plot_err(path, e))?;
+        }
+
+        // (b) stress curves.
+        let tau_max = rows.iter().flat_map(|r| r.stress.iter().map(|p| p.0)).fold(0.0, f64::max).max(1e-6);
+        let mut chart = ChartBuilder::on(&right)
+            .caption("(b) stress test: F as the overlap required rises", (FONT, 18).into_font())
+            .margin(16)
+            .x_label_area_size(40)
+            .y_label_area_size(50)
+            .build_cartesian_2d(0.0..tau_max, 0.0..1.02)
+            .map_err(|e| plot_err(path, e))?;
+        chart
+            .configure_mesh()
+            .x_desc("τ (least overlap of a detected and an annotated box)")
+            .y_desc("F")
+            .label_style((FONT, 13))
+            .axis_desc_style((FONT, 14))
+            .light_line_style(RGBColor(235, 235, 235))
+            .draw()
+            .map_err(|e| plot_err(path, e))?;
+        let dashes = [(1, 0), (10, 5), (3, 4)];
+        for r in rows {
+            let c = colour(&r.method);
+            let l = levels.iter().position(|x| *x == r.difficulty).unwrap_or(0);
+            let (dash, gap) = dashes[l % dashes.len()];
+            let label = format!("{}, {}", r.method, r.difficulty);
+            let style = c.stroke_width(2);
+            let series = if gap == 0 {
+                chart.draw_series(LineSeries::new(r.stress.iter().copied(), style))
+            } else {
+                chart.draw_series(DashedLineSeries::new(r.stress.iter().copied(), dash, gap, style))
+            };
+            // A solid line's legend is drawn as one "dash" of the full width.
+            let (dash, gap) = if gap == 0 { (20, 0) } else { (dash, gap) };
+            series.map_err(|e| plot_err(path, e))?.label(label).legend(move |(x, y)| {
+                EmptyElement::at((x, y))
+                    + PathElement::new(vec![(0, 0), (dash.min(20), 0)], style)
+                    + PathElement::new(vec![((dash + gap).min(20), 0), (20, 0)], style)
+            });
+        }
+        chart
+            .draw_series(DashedLineSeries::new(
+                vec![(tau, 0.0), (tau, 1.02)],
+                6,
+                4,
+                RGBColor(90, 90, 90).stroke_width(1),
+            ))
+            .map_err(|e| plot_err(path, e))?;
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::LowerLeft)
+            .background_style(WHITE.mix(0.85))
+            .border_style(RGBColor(200, 200, 200))
+            .label_font((FONT, 12))
+            .draw()
+            .map_err(|e| plot_err(path, e))?;
+        root.present().map_err(|e| plot_err(path, e))?;
+    }
+    motif_core::io::write_png_rgb(path, size.0, size.1, &buf).map_err(|e| plot_err(path, e))
+}
+
+/// Top of the bar chart's F axis: the band above 1 holds the legend.
+const TOP: f64 = 1.28;
+
+/// The distinct values of `items`, in order of first appearance.
+fn unique<'a>(items: impl Iterator<Item = &'a str>) -> Vec<&'a str> {
+    let mut out: Vec<&str> = Vec::new();
+    for i in items {
+        if !out.contains(&i) {
+            out.push(i);
+        }
+    }
+    out
 }

@@ -274,9 +274,10 @@ fn mean_over_two_scenes() {
     assert!(close(summary.recall, 0.75));
     assert!(close(summary.f, (1.0 + 2.0 / 3.0) / 2.0));
     // PR curves. Scene 1: (2, 1, 1), remove the 3-class: (1, 2/2, 2/5), then (0, 0, 0).
-    // Scene 2: (1, 1, 0.5), (0, 0, 0); it holds (0, 0) at 2 removed.
-    let expected = [(0, 1.0, 0.75), (1, 0.5, 0.2), (2, 0.0, 0.0)];
-    assert_eq!(summary.mean_pr_curve.len(), 3);
+    // Scene 2: (1, 1, 0.5), (0, 0, 0). The mean at k removed is over the scenes with a class
+    // left: both at 0 removed, scene 1 alone at 1; no point once no scene has one.
+    let expected = [(0, 1.0, 0.75), (1, 1.0, 0.4)];
+    assert_eq!(summary.mean_pr_curve.len(), 2);
     for (got, want) in summary.mean_pr_curve.iter().zip(expected.iter()) {
         assert_eq!(got.0, want.0);
         assert!(close(got.1, want.1) && close(got.2, want.2), "{got:?} != {want:?}");

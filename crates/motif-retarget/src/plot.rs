@@ -77,6 +77,53 @@ fn heat(t: f64) -> RGBColor {
     RGBColor(c[0], c[1], c[2])
 }
 
+/// The principal offsets in the order the CLI lists them and `motif retarget --steps U,V,W`
+/// counts them (by model axis, [`OffsetAnalysis::axis_order`]): `(number, index into
+/// analysis.principal)`. The picture numbers them the same way (`p0`, `p1`, `p2`), so a step
+/// count read off the picture grows the axis it names.
+pub fn principal_numbering(analysis: &OffsetAnalysis) -> Vec<(usize, usize)> {
+    let n = analysis.principal.len();
+    let valid = analysis.axis_order.len() == n && {
+        let mut seen = analysis.axis_order.clone();
+        seen.sort_unstable();
+        seen.iter().copied().eq(0..n)
+    };
+    if valid {
+        analysis.axis_order.iter().copied().enumerate().collect()
+    } else {
+        (0..n).map(|k| (k, k)).collect()
+    }
+}
+
+/// Colour of principal offset number `i` (grey when the verdict is "no repetition": the offsets
+/// were found but rejected).
+fn principal_colour(analysis: &OffsetAnalysis, i: usize) -> RGBColor {
+    if analysis.repetition.kind == crate::offsets::Repetition::NoRepetition {
+        RGBColor(150, 150, 150)
+    } else {
+        PRINCIPAL_COLOURS[i % PRINCIPAL_COLOURS.len()]
+    }
+}
+
+/// Splits `text` into lines of at most `width` characters at spaces.
+fn wrap(text: &str, width: usize) -> Vec<String> {
+    let mut lines = Vec::new();
+    let mut line = String::new();
+    for word in text.split_whitespace() {
+        if !line.is_empty() && line.chars().count() + 1 + word.chars().count() > width {
+            lines.push(std::mem::take(&mut line));
+        }
+        if !line.is_empty() {
+            line.push(' ');
+        }
+        line.push_str(word);
+    }
+    if !line.is_empty() {
+        lines.push(line);
+    }
+    lines
+}
+
 /// Colours of the principal offsets' arrows.
 const PRINCIPAL_COLOURS: [RGBColor; 3] =
     [RGBColor(0, 110, 200), RGBColor(0, 150, 60), RGBColor(150, 60, 200)];
@@ -186,9 +233,11 @@ fn draw_projection(
             }
         }
     }
-    // Principal offsets as arrows.
-    for (k, p) in analysis.principal.iter().enumerate() {
-        let colour = PRINCIPAL_COLOURS[k % PRINCIPAL_COLOURS.len()];
+    // Principal offsets as arrows (dashed when the verdict rejected them).
+    let rejected = analysis.repetition.kind == crate::offsets::Repetition::NoRepetition;
+    for (i, k) in principal_numbering(analysis) {
+        let p = &analysis.principal[k];
+        let colour = principal_colour(analysis, i);
         let (x, y) = (p.offset[a], p.offset[b]);
         let len = (x * x + y * y).sqrt();
         if len < 1e-3 * extent {
@@ -203,16 +252,42 @@ fn draw_projection(
         let back = (x - head * ux, y - head * uy);
         let left = (back.0 - 0.45 * head * uy, back.1 + 0.45 * head * ux);
         let right = (back.0 + 0.45 * head * uy, back.1 - 0.45 * head * ux);
-        chart
-            .draw_series(std::iter::once(PathElement::new(vec![(0.0, 0.0), (x, y)], colour.stroke_width(3))))
-            .map_err(|e| plot_err(path, e))?;
+        if rejected {
+            chart
+                .draw_series(std::iter::once(plotters::element::DashedPathElement::new(
+                    vec![(0.0, 0.0), (x, y)],
+                    8,
+                    6,
+                    colour.stroke_width(3),
+                )))
+                .map_err(|e| plot_err(path, e))?;
+        } else {
+            chart
+                .draw_series(std::iter::once(PathElement::new(
+                    vec![(0.0, 0.0), (x, y)],
+                    colour.stroke_width(3),
+                )))
+                .map_err(|e| plot_err(path, e))?;
+        }
         chart
             .draw_series(std::iter::once(Polygon::new(vec![(x, y), left, right], colour.filled())))
             .map_err(|e| plot_err(path, e))?;
+        // The label beyond the arrow's head, on a white ground so that peak circles and bins
+        // do not strike through it.
+        let label = format!("p{i}{} ({})", if rejected { " rejected" } else { "" }, p.support);
+        let (lx, ly) = (x + 0.05 * extent * ux, y + 0.05 * extent * uy + 0.02 * extent);
+        let width = 0.0125 * extent * label.chars().count() as f64;
+        let lx = if ux < -0.5 { lx - width } else { lx };
+        chart
+            .draw_series(std::iter::once(Rectangle::new(
+                [(lx - 0.01 * extent, ly + 0.01 * extent), (lx + width, ly - 0.055 * extent)],
+                RGBColor(255, 255, 255).mix(0.85).filled(),
+            )))
+            .map_err(|e| plot_err(path, e))?;
         chart
             .draw_series(std::iter::once(Text::new(
-                format!("v{} ({})", k + 1, p.support),
-                (x + 0.03 * extent * ux.signum(), y + 0.05 * extent),
+                label,
+                (lx, ly),
                 (FONT, 15).into_font().style(FontStyle::Bold).color(&colour),
             )))
             .map_err(|e| plot_err(path, e))?;
@@ -241,17 +316,19 @@ fn draw_summary(
         .configure_mesh()
         .disable_x_mesh()
         .x_desc("dominant offset #")
-        .y_desc("offsets in the peak's 27 bins")
+        .y_desc("offsets in the peak's 3×3×3 bins")
         .x_labels(n.min(20))
         .x_label_formatter(&|x| format!("{:.0}", x))
+        .y_label_formatter(&|y| format!("{:.0}", y))
         .label_style((FONT, 13))
         .axis_desc_style((FONT, 14))
         .draw()
         .map_err(|e| plot_err(path, e))?;
+    let numbered = principal_numbering(analysis);
     for (k, d) in analysis.dominant.iter().enumerate() {
-        let principal = analysis.principal.iter().position(|p| p.dominant == k);
+        let principal = numbered.iter().find(|&&(_, j)| analysis.principal[j].dominant == k).map(|&(i, _)| i);
         let colour = match (principal, d.status) {
-            (Some(p), _) => PRINCIPAL_COLOURS[p % PRINCIPAL_COLOURS.len()],
+            (Some(p), _) => principal_colour(analysis, p),
             (None, DominantStatus::Accepted) => RGBColor(150, 180, 220),
             _ => RGBColor(200, 200, 200),
         };
@@ -261,7 +338,7 @@ fn draw_summary(
             .draw_series(std::iter::once(Rectangle::new([(x - 0.38, 0.0), (x + 0.38, y)], colour.filled())))
             .map_err(|e| plot_err(path, e))?;
         let label = match (principal, d.status) {
-            (Some(p), _) => format!("v{}", p + 1),
+            (Some(p), _) => format!("p{p}"),
             (None, DominantStatus::Accepted) => String::new(),
             (None, DominantStatus::Collapsed) => "col".into(),
             (None, DominantStatus::Drifted) => "dri".into(),
@@ -273,8 +350,11 @@ fn draw_summary(
             chart
                 .draw_series(std::iter::once(Text::new(
                     label,
-                    (x - 0.3, y + 0.03 * max),
-                    (FONT, 12).into_font().color(&colour),
+                    (x - 0.35, y + 0.035 * max),
+                    (FONT, 13).into_font().color(&match principal {
+                        Some(_) => colour,
+                        None => RGBColor(90, 90, 90),
+                    }),
                 )))
                 .map_err(|e| plot_err(path, e))?;
         }
@@ -300,34 +380,71 @@ fn draw_summary(
         14,
         BLACK,
     ));
-    for (k, p) in analysis.principal.iter().enumerate() {
+    let grey = RGBColor(80, 80, 80);
+    if rep.kind == crate::offsets::Repetition::NoRepetition {
+        for l in wrap(&rep.summary, 88) {
+            lines.push((l, 13, verdict.1));
+        }
+    }
+    // Four decimals, as the CLI prints, without "-0.0000".
+    let num = |v: f64| format!("{:.4}", if v.abs() < 5e-5 { 0.0 } else { v });
+    for (i, k) in principal_numbering(analysis) {
+        let p = &analysis.principal[k];
         let m = p.offset_model;
         let mut s = format!(
-            "v{} = ({:.4}, {:.4}, {:.4})  |v| = {:.4}  support {} ({:.1}%)",
-            k + 1,
-            m[0],
-            m[1],
-            m[2],
-            p.length_model,
+            "p{i} = ({}, {}, {})  |v| = {}  support {} ({:.1}%)",
+            num(m[0]),
+            num(m[1]),
+            num(m[2]),
+            num(p.length_model),
             p.support,
             100.0 * p.support as f64 / total
         );
         if p.multiple > 1 {
-            s += &format!("  = peak #{} / {}", p.selected, p.multiple);
+            s += &format!("  ({} × the peak's offset)", p.multiple);
         }
         if p.divisor > 1 {
-            s += &format!("  / {} (below tau)", p.divisor);
+            s += &format!("  (the peak's offset / {}: that is within τ)", p.divisor);
         }
-        lines.push((s, 14, PRINCIPAL_COLOURS[k % PRINCIPAL_COLOURS.len()]));
-        lines.push((
-            format!("      overlap {:.0}%, contrast {:+.0} pts", 100.0 * p.overlap, 100.0 * p.contrast),
-            13,
-            RGBColor(80, 80, 80),
-        ));
+        lines.push((s, 14, principal_colour(analysis, i)));
+        let mut detail = format!(
+            "      shifted by it, {:.0}% of the surface lands on itself; contrast {:+.0} points",
+            100.0 * p.overlap,
+            100.0 * p.contrast
+        );
+        if p.length_model * analysis.normalisation.scale < analysis.bin_size {
+            detail += " (shorter than a bin: a dot at the centre)";
+        }
+        lines.push((detail, 13, grey));
     }
     if analysis.principal.is_empty() {
         lines.push(("no principal offset".into(), 14, BLACK));
+    } else if rep.kind == crate::offsets::Repetition::Repetitive {
+        lines.push((
+            format!(
+                "motif retarget --steps counts cells along {}, in that order",
+                (0..analysis.principal.len()).map(|i| format!("p{i}")).collect::<Vec<_>>().join(", ")
+            ),
+            13,
+            grey,
+        ));
     }
+    lines.push((
+        "How to read it: heat = offsets per bin (log scale); circles = histogram peaks".into(),
+        13,
+        grey,
+    ));
+    lines.push((
+        "(blue kept, grey rejected: col collapsed to 0 under ICP, dri drifted, low / none".into(),
+        13,
+        grey,
+    ));
+    lines.push((
+        "too little / no surface overlap, dup a repeat); thin circle = |v| = τ, offsets inside are ignored"
+            .into(),
+        13,
+        grey,
+    ));
     let t = &analysis.timings;
     lines.push((
         format!("model units; normalised = {:.4} x (model - centre)", analysis.normalisation.scale),
@@ -351,7 +468,7 @@ fn draw_summary(
     let mut y = 20;
     for (s, size, colour) in lines {
         text.draw(&Text::new(s, (10, y), font(size).color(&colour))).map_err(|e| plot_err(path, e))?;
-        y += size as i32 + 10;
+        y += size as i32 + 7;
     }
     Ok(())
 }
@@ -363,8 +480,8 @@ fn draw_summary(
 pub fn plot_sparsity(report: &SparsityReport, path: &Path) -> Result<()> {
     render_png(path, (1400, 620), |root| {
         let (left, right) = root.split_horizontally(700);
-        draw_curves(&left, report, 1.0, "(a) cumulative distribution", path)?;
-        draw_curves(&right, report, 0.2, "(b) zoom-in", path)
+        draw_curves(&left, report, 1.0, "(a) cumulative distribution (x: thesis, τ = 0.15)", path)?;
+        draw_curves(&right, report, 0.2, "(b) zoom-in: the first 20% of the bins", path)
     })
 }
 
@@ -384,27 +501,29 @@ fn draw_curves(
     caption: &str,
     path: &Path,
 ) -> Result<()> {
+    // The zoom reaches a little past its last bin share, so the thesis's marker at 20% is drawn
+    // whole.
+    let xhi = if xmax < 1.0 { xmax * 105.0 } else { 100.0 };
     let mut chart = ChartBuilder::on(area)
         .caption(caption, (FONT, 18).into_font())
         .margin(14)
         .x_label_area_size(40)
         .y_label_area_size(50)
-        .build_cartesian_2d(0.0..xmax * 100.0, 0.0..100.0)
+        .build_cartesian_2d(0.0..xhi, 0.0..100.0)
         .map_err(|e| plot_err(path, e))?;
     chart
         .configure_mesh()
         .x_desc("bins, largest first (% of non-empty bins)")
         .y_desc("offsets (%)")
+        .x_label_formatter(&|x| format!("{x:.0}"))
+        .y_label_formatter(&|y| format!("{y:.0}"))
         .label_style((FONT, 13))
         .axis_desc_style((FONT, 14))
         .light_line_style(RGBColor(235, 235, 235))
         .draw()
         .map_err(|e| plot_err(path, e))?;
     chart
-        .draw_series(LineSeries::new(
-            vec![(0.0, 0.0), (100.0, 100.0)],
-            RGBColor(170, 170, 170).stroke_width(2),
-        ))
+        .draw_series(LineSeries::new(vec![(0.0, 0.0), (xhi, xhi)], RGBColor(170, 170, 170).stroke_width(2)))
         .map_err(|e| plot_err(path, e))?
         .label("uniform")
         .legend(|(x, y)| {
@@ -422,7 +541,7 @@ fn draw_curves(
                 .filter(|&(x, _)| x <= xmax * 100.0 + 1e-9)
                 .collect();
             let label = format!("{} ({}), tau = {}", c.category.as_str(), c.models, t.tau);
-            let width = if (t.tau - 0.15).abs() < 1e-9 { 3 } else { 2 };
+            let width = if (t.tau - 0.15).abs() < 1e-9 { 4 } else { 2 };
             let style = colour.stroke_width(width);
             match c.category {
                 Category::ManMade => {
@@ -448,16 +567,58 @@ fn draw_curves(
             }
         }
     }
-    // The thesis's numbers as markers.
+    // The thesis's numbers as black crosses and, in the zoom, Motif's at the same τ and bin
+    // share as dots, each labelled with its share, so the comparison reads off the picture.
+    let zoom = xmax < 1.0;
     for r in &report.thesis {
-        if r.bins <= xmax + 1e-9 {
-            let colour =
-                if r.category == Category::ManMade { RGBColor(0, 0, 0) } else { RGBColor(200, 0, 0) };
+        if r.bins > xmax + 1e-9 {
+            continue;
+        }
+        let at = (100.0 * r.bins, 100.0 * r.offsets);
+        chart
+            .draw_series(std::iter::once(Cross::new(at, 6, BLACK.stroke_width(2))))
+            .map_err(|e| plot_err(path, e))?;
+        if !zoom {
+            continue;
+        }
+        let name = if r.category == Category::ManMade { "man-made" } else { "natural" };
+        // Labels right of their marker, or left of it near the right edge.
+        let right_edge = at.0 > 0.7 * xhi;
+        let label_style = |colour: &'static RGBColor| {
+            let style = TextStyle::from((FONT, 12).into_font()).color(colour);
+            if right_edge {
+                style.pos(plotters::style::text_anchor::Pos::new(
+                    plotters::style::text_anchor::HPos::Right,
+                    plotters::style::text_anchor::VPos::Top,
+                ))
+            } else {
+                style
+            }
+        };
+        let dx = if right_edge { -0.4 } else { 0.4 };
+        chart
+            .draw_series(std::iter::once(Text::new(
+                format!("thesis {name} {:.1}%", 100.0 * r.offsets),
+                (at.0 + dx, at.1 + 1.0),
+                label_style(&BLACK),
+            )))
+            .map_err(|e| plot_err(path, e))?;
+        let measured = report.categories.iter().find(|c| c.category == r.category).and_then(|c| {
+            let k = c.per_tau.iter().position(|t| (t.tau - r.tau).abs() < 1e-9)?;
+            let i = report.options.read_at.iter().position(|&b| (b - r.bins).abs() < 1e-9)?;
+            Some((k, *c.per_tau[k].shares.get(i)?))
+        });
+        if let Some((k, share)) = measured {
+            let colour = TAU_COLOURS[k % TAU_COLOURS.len()];
+            let dot = (100.0 * r.bins, 100.0 * share);
             chart
-                .draw_series(std::iter::once(Cross::new(
-                    (100.0 * r.bins, 100.0 * r.offsets),
-                    6,
-                    colour.stroke_width(2),
+                .draw_series(std::iter::once(Circle::new(dot, 5, colour.filled())))
+                .map_err(|e| plot_err(path, e))?;
+            chart
+                .draw_series(std::iter::once(Text::new(
+                    format!("Motif {name} {:.1}%", 100.0 * share),
+                    (dot.0 + dx, dot.1 - 1.0),
+                    label_style(&TAU_COLOURS[k % TAU_COLOURS.len()]),
                 )))
                 .map_err(|e| plot_err(path, e))?;
         }
@@ -469,13 +630,6 @@ fn draw_curves(
         .border_style(RGBColor(200, 200, 200))
         .label_font((FONT, 12))
         .draw()
-        .map_err(|e| plot_err(path, e))?;
-    chart
-        .draw_series(std::iter::once(Text::new(
-            "x: thesis (man-made black, natural red), tau = 0.15",
-            (xmax * 100.0 * 0.02, 97.0),
-            (FONT, 12).into_font(),
-        )))
         .map_err(|e| plot_err(path, e))?;
     Ok(())
 }
@@ -504,10 +658,37 @@ pub fn plot_points(points: &[[f64; 3]], a: usize, b: usize, title: &str, path: &
     })
 }
 
+/// What [`plot_retarget_preview`] writes besides the two meshes.
+#[derive(Debug, Clone, Default)]
+pub struct PreviewText<'a> {
+    /// First line: the model and what was asked.
+    pub title: String,
+    /// Lines under the title (method, nodes, labels, energy); `true` marks a warning, drawn
+    /// in red (a stitching with seams of infinite cost must not look like a success).
+    pub notes: Vec<(String, bool)>,
+    /// Per output triangle, the copy it came from (0: copied in place); the output is coloured
+    /// by copy, as thesis Fig. 4.4 c colours voxels by label, so inserted copies and seams show.
+    pub output_groups: Option<&'a [u32]>,
+}
+
+/// Colours of the copies in the preview (group 0, copied in place, is the first).
+const COPY_COLOURS: [[f64; 3]; 8] = [
+    [150.0, 175.0, 210.0],
+    [235.0, 160.0, 90.0],
+    [120.0, 195.0, 130.0],
+    [215.0, 120.0, 140.0],
+    [175.0, 145.0, 215.0],
+    [220.0, 200.0, 100.0],
+    [110.0, 190.0, 200.0],
+    [190.0, 150.0, 120.0],
+];
+
 /// A side-by-side picture of a model before and after retargeting (`motif retarget --preview
 /// PNG`): both meshes rendered with the same orthographic camera and scale by a small z-buffer
-/// rasteriser (flat Lambert shading, a headlight along the view direction), input on the left,
-/// output on the right, each with its size in model units.
+/// rasteriser (flat shading, two-sided, lit from the upper left in front, with dark outlines
+/// where depth or the surface's direction jumps, so recessed frames read against their wall),
+/// input on the left, output on the right coloured by the copy each part came from, each with
+/// its size in model units.
 ///
 /// `view` is the direction the camera looks along (any length), `up` the screen's up direction
 /// (made orthogonal to `view`); for a facade or a shelf, look along the normal of the plane of
@@ -517,7 +698,7 @@ pub fn plot_retarget_preview(
     output: &motif_core::TriMesh,
     view: [f64; 3],
     up: [f64; 3],
-    title: &str,
+    preview: &PreviewText,
     path: &Path,
 ) -> Result<()> {
     use motif_core::geometry::{cross, dot, normalize, sub};
@@ -537,7 +718,8 @@ pub fn plot_retarget_preview(
         )
     };
     let (ei, eo) = (extent(input), extent(output));
-    let (panel_w, panel_h, top) = (700usize, 620usize, 60usize);
+    let (panel_w, panel_h) = (700usize, 620usize);
+    let top = 60 + 20 * preview.notes.len();
     let span = (ei[1] - ei[0]).max(eo[1] - eo[0]).max((ei[3] - ei[2]).max(eo[3] - eo[2]) * 700.0 / 620.0);
     if !(span.is_finite() && span > 0.0) {
         return Err(plot_err(path, "nothing to draw: the meshes are empty or degenerate"));
@@ -546,7 +728,17 @@ pub fn plot_retarget_preview(
     let (w, h) = (2 * panel_w, panel_h + top);
     let mut rgb = vec![255u8; w * h * 3];
     let mut depth = vec![f64::INFINITY; w * h];
+    // Unit normal (facing the camera) of the surface at each pixel, for the outlines.
+    let mut normal = vec![[0.0f64; 3]; w * h];
+    let light = normalize([
+        -d[0] + 0.6 * v[0] - 0.4 * u[0],
+        -d[1] + 0.6 * v[1] - 0.4 * u[1],
+        -d[2] + 0.6 * v[2] - 0.4 * u[2],
+    ])
+    .unwrap_or(d.map(|c| -c));
     for (k, (mesh, ext)) in [(input, ei), (output, eo)].into_iter().enumerate() {
+        let groups =
+            if k == 1 { preview.output_groups.filter(|g| g.len() == mesh.triangles.len()) } else { None };
         let (cx, cy) = (0.5 * (ext[0] + ext[1]), 0.5 * (ext[2] + ext[3]));
         let x0 = (k * panel_w) as f64 + 0.5 * panel_w as f64;
         let y0 = top as f64 + 0.5 * panel_h as f64;
@@ -554,12 +746,14 @@ pub fn plot_retarget_preview(
             let (x, y, z) = project(p);
             (x0 + (x - cx) * scale, y0 - (y - cy) * scale, z)
         };
-        for t in &mesh.triangles {
+        for (f, t) in mesh.triangles.iter().enumerate() {
             let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
             let Some(n) = normalize(cross(sub(b, a), sub(c, a))) else { continue };
-            let shade = 0.3 + 0.7 * dot(n, d).abs();
-            let col =
-                [(90.0 + 130.0 * shade) as u8, (110.0 + 125.0 * shade) as u8, (140.0 + 110.0 * shade) as u8];
+            // Two-sided: the side facing the camera (which looks along +d).
+            let n = if dot(n, d) > 0.0 { n.map(|c| -c) } else { n };
+            let shade = 0.35 + 0.65 * dot(n, light).max(0.0);
+            let base = COPY_COLOURS[groups.map_or(0, |g| g[f] as usize) % COPY_COLOURS.len()];
+            let col = base.map(|c| (c * (0.45 + 0.6 * shade)).min(255.0) as u8);
             let (pa, pb, pc) = (to_px(a), to_px(b), to_px(c));
             let area = (pb.0 - pa.0) * (pc.1 - pa.1) - (pc.0 - pa.0) * (pb.1 - pa.1);
             if area.abs() < 1e-12 {
@@ -585,9 +779,38 @@ pub fn plot_retarget_preview(
                     let i = py * w + px;
                     if z < depth[i] {
                         depth[i] = z;
+                        normal[i] = n;
                         rgb[3 * i..3 * i + 3].copy_from_slice(&col);
                     }
                 }
+            }
+        }
+    }
+    // Outlines: a covered pixel whose right or lower neighbour is empty, lies deeper or nearer
+    // by more than 1% of the picture's span, or faces another way (more than about 35°).
+    let jump = 0.01 * span;
+    let mut edge = vec![false; w * h];
+    for py in top..h {
+        for px in 0..w {
+            let i = py * w + px;
+            for j in [(px + 1 < w).then(|| i + 1), (py + 1 < h).then(|| i + w)].into_iter().flatten() {
+                let (zi, zj) = (depth[i], depth[j]);
+                let differs = match (zi.is_finite(), zj.is_finite()) {
+                    (false, false) => false,
+                    (true, true) => (zi - zj).abs() > jump || dot(normal[i], normal[j]) < 0.82,
+                    _ => true,
+                };
+                if differs {
+                    // Darken the nearer of the two (the one in front draws the line).
+                    edge[if zi <= zj { i } else { j }] = true;
+                }
+            }
+        }
+    }
+    for (i, &e) in edge.iter().enumerate() {
+        if e {
+            for c in &mut rgb[3 * i..3 * i + 3] {
+                *c = (*c as f64 * 0.35) as u8;
             }
         }
     }
@@ -598,7 +821,16 @@ pub fn plot_retarget_preview(
             root.draw(&Text::new(s.to_string(), (x, y), (FONT, size).into_font().color(&BLACK)))
                 .map_err(|e| plot_err(path, e))
         };
-        text(title, 12, 8, 20)?;
+        text(&preview.title, 12, 8, 20)?;
+        for (k, (line, warning)) in preview.notes.iter().enumerate() {
+            let colour = if *warning { RGBColor(190, 30, 30) } else { RGBColor(60, 60, 60) };
+            root.draw(&Text::new(
+                line.clone(),
+                (12, 36 + 20 * k as i32),
+                (FONT, 15).into_font().color(&colour),
+            ))
+            .map_err(|e| plot_err(path, e))?;
+        }
         // The bounding box's sides, not the on-screen extents (the view is tilted, so those
         // mixed the axes: the shelf's 1.7 × 1.13 read 1.704 × 1.317).
         for (k, (name, mesh)) in [("input", input), ("output", output)].into_iter().enumerate() {
@@ -612,7 +844,7 @@ pub fn plot_retarget_preview(
                     mesh.triangles.len()
                 ),
                 (k * panel_w) as i32 + 12,
-                34,
+                top as i32 - 26,
                 15,
             )?;
         }

@@ -179,6 +179,10 @@ fn principal_offsets_are_listed_by_model_axis_in_any_unit() {
             "×{factor}: {:?}",
             a.principal.iter().map(|p| (p.offset, p.support)).collect::<Vec<_>>()
         );
+        // The picture numbers them the same way (p0 along x), not in the order of selection.
+        let numbered: Vec<usize> =
+            motif_retarget::plot::principal_numbering(&a).into_iter().map(|(_, k)| k).collect();
+        assert_eq!(numbered, a.axis_order, "×{factor}");
     }
 }
 

@@ -16,7 +16,8 @@ use motif_detect::preprocess::Epsilon;
 use motif_detect::rigid_icp::{RigidIcpOptions, rigid_icp};
 use motif_detect::scenes::{Difficulty, SceneKind, SceneOptions, generate_scene_with_parts, load_scene_part};
 use motif_detect::{
-    AnnotatedClassTotals, DetectOptions, DetectionResult, EvalOptions, evaluate_many, plot_pr_and_stress,
+    AnnotatedClassTotals, BenchRow, DetectOptions, DetectionResult, EvalOptions, evaluate_many, plot_bench,
+    plot_pr_and_stress_titled,
 };
 use serde::Serialize;
 
@@ -120,8 +121,11 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     };
     super::detect::validate_options(&options(Method::EmSc, g.seed))?;
     let parts: Vec<&std::path::Path> = a.parts.iter().map(|p| p.as_path()).collect();
-    check_outputs(&[a.plot.as_deref(), a.json.json.as_deref()], &parts, g.force)?;
-    crate::output::check_output_formats(&[(a.plot.as_deref(), crate::output::OutputKind::Png)])?;
+    check_outputs(&[a.plot.as_deref(), a.plot_detail.as_deref(), a.json.json.as_deref()], &parts, g.force)?;
+    crate::output::check_output_formats(&[
+        (a.plot.as_deref(), crate::output::OutputKind::Png),
+        (a.plot_detail.as_deref(), crate::output::OutputKind::Png),
+    ])?;
     // The parts are read once, before any scene: a file that is not a usable mesh stops the
     // bench at once, naming it.
     let part_meshes = a.parts.iter().map(|p| load_scene_part(p)).collect::<Result<Vec<_>, _>>()?;
@@ -207,9 +211,29 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         }
         stages.push((dname, st));
     }
+    let last_seed = g.seed.wrapping_add(a.scenes.saturating_sub(1) as u64);
+    let what =
+        format!("{} × {} scenes of {} points (seeds {}–{last_seed})", a.kind, a.scenes, a.points, g.seed);
     if let Some(p) = &a.plot {
-        if let Some((_, s)) = curves.iter().find(|(d, _)| *d == "medium").or(curves.first()) {
-            plot_pr_and_stress(s, p)?;
+        let bench_rows: Vec<BenchRow> = rows
+            .iter()
+            .map(|r| BenchRow {
+                difficulty: r.difficulty.to_string(),
+                method: r.method.to_string(),
+                f: r.f,
+                f_se: r.f_se,
+                stress: r.stress.clone(),
+            })
+            .collect();
+        plot_bench(&bench_rows, &format!("motif bench detect: {what}"), eval.tau, p)?;
+    }
+    if let Some(p) = &a.plot_detail {
+        if let Some((d, s)) = curves.iter().find(|(d, _)| *d == "medium").or(curves.first()) {
+            let title = format!(
+                "EM + SC, {d} {what}: P {:.3}, R {:.3}, F {:.3} at τ {}",
+                s.precision, s.recall, s.f, eval.tau
+            );
+            plot_pr_and_stress_titled(s, &title, p)?;
         }
     }
     if !crate::output::json_on_stdout(&a.json.json) {
@@ -294,8 +318,8 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 );
             }
         }
-        if let Some(p) = &a.plot {
-            eprintln!("wrote {}", p.display());
+        for p in [&a.plot, &a.plot_detail].into_iter().flatten() {
+            super::note(g, format!("wrote {}", p.display()));
         }
     }
     maybe_json(

@@ -290,8 +290,12 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         motif_core::io::write(&a.output, &Model::from_mesh(&out), &WriteOptions::default())?;
         if let Some(p) = &a.preview {
             let (view, up) = preview_camera(&mesh, &[]);
-            let title = format!("{}: plain resize", a.mesh.display());
-            motif_retarget::plot::plot_retarget_preview(&mesh, &out, view, up, &title, p)?;
+            let text = motif_retarget::plot::PreviewText {
+                title: format!("{}: plain resize (no repetition to follow)", a.mesh.display()),
+                notes: vec![("every part is stretched by the same factor per axis".to_string(), false)],
+                output_groups: None,
+            };
+            motif_retarget::plot::plot_retarget_preview(&mesh, &out, view, up, &text, p)?;
         }
         // A flat model cannot be given a size along its zero extent: say so, not "as asked".
         let flat: Vec<String> = (0..3)
@@ -440,8 +444,56 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     motif_core::io::write(&a.output, &Model::from_mesh(&res.mesh), &WriteOptions::default())?;
     if let Some(p) = &a.preview {
         let (view, up) = preview_camera(&mesh, &principal);
-        let title = format!("{}: steps {:+} {:+} {:+}", a.mesh.display(), steps[0], steps[1], steps[2]);
-        motif_retarget::plot::plot_retarget_preview(&mesh, &res.mesh, view, up, &title, p)?;
+        let r = &res.report;
+        // Each output triangle's copy: its voxel's step vector, numbered in order of first use
+        // with "copied in place" (0, 0, 0) first.
+        let mut copies: Vec<[i32; 3]> = vec![[0, 0, 0]];
+        let groups: Vec<u32> = res
+            .triangle_voxels
+            .iter()
+            .map(|&v| {
+                let k = res.voxel_labels[v as usize];
+                match copies.iter().position(|c| *c == k) {
+                    Some(i) => i as u32,
+                    None => {
+                        copies.push(k);
+                        (copies.len() - 1) as u32
+                    }
+                }
+            })
+            .collect();
+        let method = match r.method {
+            RetargetMethod::Offsets => "the detected offsets",
+            RetargetMethod::Dense => "the dense baseline (regular offsets)",
+        };
+        let mut notes = vec![(
+            format!(
+                "with {method}: {} nodes, {} labels, energy {:.4}, graph cut {:.1} ms; colours: the copy each part came from (blue: in place)",
+                r.nodes, r.labels, r.energy, r.graph_cut_ms
+            ),
+            false,
+        )];
+        if r.infinite_seams > 0 {
+            notes.push((
+                format!(
+                    "warning: at {} of {} seams one copy meets empty space in another (energy +inf); {}",
+                    r.infinite_seams,
+                    r.seams,
+                    if r.output_boundary_edges == 0 {
+                        "the openings there were capped".to_string()
+                    } else {
+                        format!("{} open boundary edges are left", r.output_boundary_edges)
+                    }
+                ),
+                true,
+            ));
+        }
+        let text = motif_retarget::plot::PreviewText {
+            title: format!("{}: steps {:+} {:+} {:+}", a.mesh.display(), steps[0], steps[1], steps[2]),
+            notes,
+            output_groups: Some(&groups),
+        };
+        motif_retarget::plot::plot_retarget_preview(&mesh, &res.mesh, view, up, &text, p)?;
     }
     let r = &res.report;
     // Results print under --quiet too (only the "wrote" notes are quiet), and the warning
