@@ -969,6 +969,10 @@ pub struct DetectArgs {
     /// The classes as a motif_symmetry_v1 annotation of instance sets (for `motif deform`).
     #[arg(long, value_name = "ANNOT.json", value_parser = json_path)]
     pub as_symmetry: Option<PathBuf>,
+    /// A picture of the detection (PNG): the points seen along two axes, coloured by class, with
+    /// every instance's box.
+    #[arg(long, value_name = "PNG")]
+    pub plot: Option<PathBuf>,
     /// Skip the EM refinement: spectral clustering on the initial dictionary (the thesis's "SC").
     #[arg(long)]
     pub no_em: bool,

@@ -287,11 +287,29 @@ fn detected_copies_of_a_mesh_part_make_an_exact_symmetry_annotation() {
     std::fs::write(d.path().join("cubes.off"), off).unwrap();
     let o = motif(&["info", "cubes.off"], d.path());
     assert!(stdout(&o).contains("closed, consistently oriented"), "{}", stdout(&o));
+    // A picture must be a PNG (refused before any work), and is named among the files written.
+    let o = motif(&["detect", "cubes.off", "-o", "r.json", "--plot", "r.svg"], d.path());
+    assert!(!o.status.success() && stderr(&o).contains("PNG"), "{}", stderr(&o));
+    assert!(!d.path().join("r.json").exists());
     let o = motif(
-        &["detect", "cubes.off", "-o", "r.json", "--as-symmetry", "a.json", "--json", "rep.json"],
+        &[
+            "detect",
+            "cubes.off",
+            "-o",
+            "r.json",
+            "--as-symmetry",
+            "a.json",
+            "--json",
+            "rep.json",
+            "--plot",
+            "r.png",
+        ],
         d.path(),
     );
     assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("r.png (picture)"), "{}", stderr(&o));
+    let png = std::fs::read(d.path().join("r.png")).unwrap();
+    assert!(png.starts_with(b"\x89PNG") && png.len() > 10_000, "{} bytes", png.len());
     let r: serde_json::Value =
         serde_json::from_slice(&std::fs::read(d.path().join("r.json")).unwrap()).unwrap();
     let found: usize =

@@ -10,19 +10,8 @@ use crate::cli::{DetectArgs, GlobalArgs};
 use crate::output::{check_outputs, maybe_json, write_json};
 use crate::progress::Bar;
 
-/// Distinct colours for classes (Tableau 10); background points are grey.
-const PALETTE: [[u8; 3]; 10] = [
-    [214, 39, 40],
-    [31, 119, 180],
-    [44, 160, 44],
-    [255, 127, 14],
-    [148, 103, 189],
-    [140, 86, 75],
-    [227, 119, 194],
-    [188, 189, 34],
-    [23, 190, 207],
-    [127, 127, 127],
-];
+/// Distinct colours for classes, as `--plot` draws them; background points are grey.
+const PALETTE: [[u8; 3]; 10] = motif_detect::plot::CLASS_COLOURS;
 
 /// Checks `o` before any input is read ([`DetectOptions::validate`]); a field out of range is
 /// named by its command-line flag.
@@ -108,10 +97,17 @@ pub fn options(a: &DetectArgs, g: &GlobalArgs) -> DetectOptions {
 pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let inputs = [a.input.as_path()];
     check_outputs(
-        &[Some(&a.output), a.labels.as_deref(), a.as_symmetry.as_deref(), a.json.json.as_deref()],
+        &[
+            Some(&a.output),
+            a.labels.as_deref(),
+            a.as_symmetry.as_deref(),
+            a.plot.as_deref(),
+            a.json.json.as_deref(),
+        ],
         &inputs,
         g.force,
     )?;
+    crate::output::check_output_formats(&[(a.plot.as_deref(), crate::output::OutputKind::Png)])?;
     if let Some(p) = &a.labels {
         if !p.extension().is_some_and(|e| e.eq_ignore_ascii_case("ply")) {
             return Err(crate::output::bad_input(format!(
@@ -148,6 +144,23 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         let cloud = detection.samples.as_ref().unwrap_or(&model.vertices);
         let labelled = labelled_cloud(cloud, &detection);
         super::write_model(p, &Model::from_point_cloud(labelled), &inputs, g, &Default::default())?;
+    }
+    if let Some(p) = &a.plot {
+        let cloud = detection.samples.as_ref().unwrap_or(&model.vertices);
+        let title = format!(
+            "{}: {} classes, {} instances ({})",
+            a.input.display(),
+            detection.result.classes.len(),
+            detection.result.classes.iter().map(|c| c.instances.len()).sum::<usize>(),
+            if a.no_em { "SC, no EM" } else { "EM + SC" }
+        );
+        motif_detect::plot::plot_detections(
+            &cloud.positions,
+            &detection.labels,
+            &detection.result,
+            &title,
+            p,
+        )?;
     }
     if let Some(p) = &a.as_symmetry {
         let annotation = if model.is_mesh() {
@@ -190,6 +203,7 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let mut written: Vec<String> = vec![a.output.display().to_string()];
     written.extend(a.labels.iter().map(|p| format!("{} (labelled points)", p.display())));
     written.extend(a.as_symmetry.iter().map(|p| format!("{} (motif_symmetry_v1)", p.display())));
+    written.extend(a.plot.iter().map(|p| format!("{} (picture)", p.display())));
     if !crate::output::json_on_stdout(&a.json.json) {
         written.extend(a.json.json.iter().map(|p| format!("{} (report)", p.display())));
     }
