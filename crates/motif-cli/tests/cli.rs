@@ -564,6 +564,25 @@ fn align_recovers_a_known_motion_and_demo_runs() {
     assert!(d.path().join("demo/gear_curvature.ply").exists());
     assert!(d.path().join("demo/facade_scan.labels.ply").exists());
     assert!(d.path().join("demo/facade_scan.detection.json").exists());
+    // Pictures where a user would rather look than read, each listed among the step's outputs.
+    let listed: Vec<String> = rep["steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|s| s["outputs"].as_array().unwrap().iter().map(|o| o.as_str().unwrap().to_string()))
+        .collect();
+    for png in [
+        "windmill_deformed.png",
+        "shelf_offsets.png",
+        "shelf_6x4.png",
+        "shelf_6x4_dense.png",
+        "facade_scan.detection.png",
+        "facade_scan.eval.png",
+    ] {
+        let bytes = std::fs::read(d.path().join("demo").join(png)).unwrap_or_default();
+        assert!(bytes.starts_with(b"\x89PNG"), "demo/{png} is not a PNG");
+        assert!(listed.iter().any(|o| o.ends_with(png)), "demo/{png} not listed: {listed:?}");
+    }
 }
 
 #[test]

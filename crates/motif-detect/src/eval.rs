@@ -329,16 +329,27 @@ impl Pairwise {
         count_matching(&self.d_best[j][i], tau).min(count_matching(&self.g_best[j][i], tau))
     }
 
-    /// The first argmax of `score`, or `None` when the best score is 0 (or there is no index).
-    fn best(n: usize, score: impl Fn(usize) -> usize) -> (usize, Option<usize>) {
-        let mut best = (0, None);
+    /// Sum of the overlap ratios at or above τ between 𝐃ʲ and 𝐆ⁱ, both ways: how well the two
+    /// classes' matching boxes fit, to tell apart two classes of equal score.
+    fn fit(&self, j: usize, i: usize, tau: f64) -> f64 {
+        let sum = |best: &[Option<f64>]| best.iter().flatten().filter(|&&r| r >= tau).sum::<f64>();
+        sum(&self.d_best[j][i]) + sum(&self.g_best[j][i])
+    }
+
+    /// The argmax of `score`, or `None` when the best score is 0 (or there is no index); among
+    /// equal scores the one of the largest `fit`, then the first. Only which class a report
+    /// names depends on the tie-break, never P or R (they count the score). Without it a class
+    /// of six balconies was reported as credited against the tall windows behind them: each
+    /// balcony's box overlaps a window's, both classes scored 6, and the windows came first.
+    fn best(n: usize, score: impl Fn(usize) -> usize, fit: impl Fn(usize) -> f64) -> (usize, Option<usize>) {
+        let mut best: (usize, Option<usize>, f64) = (0, None, 0.0);
         for k in 0..n {
             let s = score(k);
-            if s > best.0 {
-                best = (s, Some(k));
+            if s > best.0 || (s > 0 && s == best.0 && fit(k) > best.2) {
+                best = (s, Some(k), fit(k));
             }
         }
-        best
+        (best.0, best.1)
     }
 
     /// (precision, recall) at τ with only the detected classes `kept` (eq. 5.5).
@@ -391,7 +402,8 @@ pub fn evaluate(
         .iter()
         .enumerate()
         .map(|(i, g)| {
-            let (recalled, best_detected) = Pairwise::best(n_classes, |j| pw.score(j, i, tau));
+            let (recalled, best_detected) =
+                Pairwise::best(n_classes, |j| pw.score(j, i, tau), |j| pw.fit(j, i, tau));
             let found = (0..g.instances.len())
                 .filter(|&k| (0..n_classes).any(|j| pw.g_best[j][i][k].is_some_and(|r| r >= tau)))
                 .count();
@@ -409,7 +421,8 @@ pub fn evaluate(
         .iter()
         .enumerate()
         .map(|(j, d)| {
-            let (credited, best_annotated) = Pairwise::best(pw.g_sizes.len(), |i| pw.score(j, i, tau));
+            let (credited, best_annotated) =
+                Pairwise::best(pw.g_sizes.len(), |i| pw.score(j, i, tau), |i| pw.fit(j, i, tau));
             DetectedClassReport {
                 name: d.name.clone().unwrap_or_else(|| format!("class_{j}")),
                 instances: d.instances.len(),

@@ -114,6 +114,31 @@ fn per_class_breakdown_names_missed_and_mixed_instances() {
     assert_eq!(t, vec![("window", 2, 6, 5, 5), ("class_1", 2, 6, 6, 5)]);
 }
 
+/// Balconies in front of windows: each balcony's box also overlaps its window's (ratio 0.25),
+/// so a detected class of the balconies scores 2 against both annotated classes. The report
+/// names the class its boxes fit best (the balconies, ratio 1), not the first listed.
+#[test]
+fn ties_are_credited_to_the_class_the_boxes_fit_best() {
+    let window = |x: f64| DetectedInstance::from_box([x, 0.0, 0.0], [x + 1.0, 1.0, 1.0]);
+    // Half as deep and half as high as the window, in front of it: overlap 0.25 of the window.
+    let balcony = |x: f64| DetectedInstance::from_box([x, 0.0, 0.5], [x + 1.0, 0.5, 1.0]);
+    let mut gt = scene(vec![
+        DetectedClass::new(vec![window(0.0), window(10.0)]),
+        DetectedClass::new(vec![balcony(0.0), balcony(10.0)]),
+    ]);
+    gt.classes[0].name = Some("window".into());
+    gt.classes[1].name = Some("balcony".into());
+    let det = scene(vec![DetectedClass::new(vec![balcony(0.0), balcony(10.0)])]);
+    let rep = evaluate(&det, &gt, &EvalOptions::default()).expect("valid input");
+    let (b, w) = (balcony(0.0), window(0.0));
+    assert!(close(overlap_ratio(&b.bbox_min, &b.bbox_max, &w.bbox_min, &w.bbox_max).unwrap(), 0.25));
+    assert_eq!((rep.detected[0].credited, rep.detected[0].best_annotated), (2, Some(1)));
+    // The figures do not depend on the tie-break: P = 2 / 2, and R = 4 / 4, as each annotated
+    // class's best detected class is the one class, which scores 2 against both (eq. 5.5).
+    assert!(close(rep.precision, 1.0) && close(rep.recall, 1.0), "P {} R {}", rep.precision, rep.recall);
+    assert_eq!(rep.annotated[1].best_detected, Some(0));
+}
+
 #[test]
 fn located_share_bounds_every_regrouping() {
     let gt = scene(vec![class(&[0.0, 10.0, 20.0]), class(&[100.0, 110.0, 120.0])]);

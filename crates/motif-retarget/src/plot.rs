@@ -660,7 +660,7 @@ pub fn plot_points(points: &[[f64; 3]], a: usize, b: usize, title: &str, path: &
 
 /// What [`plot_retarget_preview`] writes besides the two meshes.
 #[derive(Debug, Clone, Default)]
-pub struct PreviewText<'a> {
+pub struct PreviewText {
     /// First line: the model and what was asked.
     pub title: String,
     /// Lines under the title (method, nodes, labels, energy); `true` marks a warning, drawn
@@ -668,7 +668,7 @@ pub struct PreviewText<'a> {
     pub notes: Vec<(String, bool)>,
     /// Per output triangle, the copy it came from (0: copied in place); the output is coloured
     /// by copy, as thesis Fig. 4.4 c colours voxels by label, so inserted copies and seams show.
-    pub output_groups: Option<&'a [u32]>,
+    pub output_groups: Option<Vec<u32>>,
 }
 
 /// Colours of the copies in the preview (group 0, copied in place, is the first).
@@ -737,8 +737,11 @@ pub fn plot_retarget_preview(
     ])
     .unwrap_or(d.map(|c| -c));
     for (k, (mesh, ext)) in [(input, ei), (output, eo)].into_iter().enumerate() {
-        let groups =
-            if k == 1 { preview.output_groups.filter(|g| g.len() == mesh.triangles.len()) } else { None };
+        let groups = if k == 1 {
+            preview.output_groups.as_deref().filter(|g| g.len() == mesh.triangles.len())
+        } else {
+            None
+        };
         let (cx, cy) = (0.5 * (ext[0] + ext[1]), 0.5 * (ext[2] + ext[3]));
         let x0 = (k * panel_w) as f64 + 0.5 * panel_w as f64;
         let y0 = top as f64 + 0.5 * panel_h as f64;

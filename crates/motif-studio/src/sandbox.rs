@@ -40,9 +40,16 @@ impl Sandbox {
         &self.root
     }
 
+    /// True when the symbolic link `path` leads to a file under the root (what
+    /// [`Sandbox::resolve_read`] accepts).
+    fn links_inside(&self, path: &Path) -> bool {
+        path.canonicalize().is_ok_and(|c| c.starts_with(&self.root) && c.is_file())
+    }
+
     /// Files under the root, relative paths sorted, for which `keep` is true: folders at most
     /// [`LIST_DEPTH`] deep, without hidden folders, `target` and `node_modules`, and without
-    /// following symbolic links to folders (a listing never leaves the root); at most
+    /// following symbolic links to folders (a listing never leaves the root; a link to a file is
+    /// listed only when it leads to a file under the root); at most
     /// [`LIST_FILES`] files. The flag is true when a limit cut the listing short.
     pub fn list(&self, keep: impl Fn(&Path) -> bool) -> (Vec<PathBuf>, bool) {
         let mut out = Vec::new();
@@ -63,7 +70,7 @@ impl Sandbox {
                     } else {
                         truncated = true;
                     }
-                } else if (kind.is_file() || (kind.is_symlink() && path.is_file())) && keep(&path) {
+                } else if (kind.is_file() || (kind.is_symlink() && self.links_inside(&path))) && keep(&path) {
                     if out.len() == LIST_FILES {
                         truncated = true;
                         break;

@@ -221,16 +221,19 @@ pub fn open(shared: &Shared, path: &str, p: &JobProgress) -> Result<Vec<Out>> {
     let mut annotation = None;
     if let (true, Some(mesh)) = (sidecar.is_file(), &loaded.mesh) {
         let name = sandbox.display(&sidecar);
-        let sidecar = sandbox.resolve_read(&sidecar.display().to_string())?;
-        let checked = motif_deform::read_annotation(&sidecar).map_err(|e| e.to_string()).and_then(|a| {
-            let report = check_annotation(mesh, &a).map_err(|e| e.to_string())?;
-            match misfits(&report, &a) {
-                None => Ok(a),
-                Some(problems) => Err(format!("it does not fit this model: {problems}")),
-            }
-        });
+        let checked = sandbox
+            .resolve_read(&sidecar.display().to_string())
+            .map_err(|e| e.to_string())
+            .and_then(|sidecar| {
+                let a = motif_deform::read_annotation(&sidecar).map_err(|e| e.to_string())?;
+                let report = check_annotation(mesh, &a).map_err(|e| e.to_string())?;
+                match misfits(&report, &a) {
+                    None => Ok((sidecar, a)),
+                    Some(problems) => Err(format!("it does not fit this model: {problems}")),
+                }
+            });
         match checked {
-            Ok(a) => {
+            Ok((sidecar, a)) => {
                 inputs.push(sidecar);
                 annotation = Some(a);
             }

@@ -785,13 +785,23 @@ async fn the_files_under_the_root_are_listed_for_the_path_fields() {
     motif_core::io::write_mesh(&s.root.join("scans/deep/er/still/c.obj"), &shelf.mesh).unwrap();
     std::fs::write(s.root.join("shelf.sym.json"), "{}").unwrap();
     std::fs::write(s.root.join("notes.txt"), "not listed").unwrap();
+    // Links: one to a file under the root is listed, one leading outside is not.
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::symlink(s.root.join("shelf.obj"), s.root.join("shelf-link.obj")).unwrap();
+        std::os::unix::fs::symlink(s.root.join("../outside.obj"), s.root.join("outside-link.obj")).unwrap();
+    }
     let mut ws = connect(&s.url).await;
     send(&mut ws, json!({"type": "list_files"})).await;
     match next_text(&mut ws).await {
         ServerMessage::Files { models, json, truncated } => {
             // Hidden folders are skipped and the listing stops four folders deep.
             // (`start` writes fan.obj; the others are this test's.)
-            assert_eq!(models, vec!["fan.obj", "scans/a.PLY", "shelf.obj"]);
+            let mut want = vec!["fan.obj", "scans/a.PLY", "shelf.obj"];
+            if cfg!(unix) {
+                want.insert(2, "shelf-link.obj");
+            }
+            assert_eq!(models, want);
             assert_eq!(json, vec!["shelf.sym.json"]);
             assert!(truncated);
         }

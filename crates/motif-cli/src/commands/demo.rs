@@ -421,6 +421,28 @@ fn deformation(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
             motif_core::TriMesh { positions: s.positions().to_vec(), triangles: mesh.triangles.clone() };
         let p = d.path(file);
         outputs.push(write(&p, &Model::from_mesh(&out))?);
+        // The rest shape beside the dragged one, seen from the front at a slant.
+        let png = p.with_extension("png");
+        let text = motif_retarget::plot::PreviewText {
+            title: format!(
+                "windmill: rest (left) and one blade dragged {} (right)",
+                if mode == SymmetryMode::Preserve {
+                    "with its symmetries kept"
+                } else {
+                    "with --no-symmetry"
+                }
+            ),
+            ..Default::default()
+        };
+        motif_retarget::plot::plot_retarget_preview(
+            mesh,
+            &out,
+            [-0.4, -0.25, -1.0],
+            [0.0, 1.0, 0.0],
+            &text,
+            &png,
+        )?;
+        outputs.push(png.display().to_string());
         frame_ms.sort_by(|a, b| a.total_cmp(b));
         let st = s.stats();
         lines.push(format!(
@@ -448,6 +470,8 @@ fn retargeting(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
     let features = prepare_features(&ex.mesh, &opts, &NoProgress)?;
     let analysis = analyze_features(&features, &opts, &NoProgress)?;
     let principal = orient_offsets(&analysis.principal.iter().map(|p| p.offset_model).collect::<Vec<_>>());
+    let offsets_png = d.path("shelf_offsets.png");
+    motif_retarget::plot::plot_offsets(&analysis, "shelf (generated)", &offsets_png)?;
     let pitch = &ex.structure.cell_pitch;
     let mut lines = vec![format!(
         "principal offsets found: {} (known cell pitch: {})",
@@ -462,7 +486,7 @@ fn retargeting(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
             .collect::<Vec<_>>()
             .join(", ")
     )];
-    let mut outputs = Vec::new();
+    let mut outputs = vec![offsets_png.display().to_string()];
     for (method, file) in
         [(RetargetMethod::Offsets, "shelf_6x4.obj"), (RetargetMethod::Dense, "shelf_6x4_dense.obj")]
     {
@@ -471,6 +495,11 @@ fn retargeting(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
             .retarget([2, 1, 0], &NoProgress)?;
         let p = d.path(file);
         outputs.push(write(&p, &Model::from_mesh(&r.mesh))?);
+        let png = p.with_extension("png");
+        let (view, up) = super::retarget::preview_camera(&ex.mesh, &principal);
+        let text = super::retarget::preview_text("shelf: +2 columns, +1 row".to_string(), &r);
+        motif_retarget::plot::plot_retarget_preview(&ex.mesh, &r.mesh, view, up, &text, &png)?;
+        outputs.push(png.display().to_string());
         let rep = &r.report;
         lines.push(format!(
             "{:<8} +2 columns, +1 row: {:>5} nodes, {:>3} labels, graph cut {:>7.1} ms, {} triangles",
@@ -482,7 +511,7 @@ fn retargeting(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
         ));
     }
     lines.push(
-        "the 4x3 shelf becomes 6x4 with every cell intact; the dense baseline cuts through boards".into(),
+        "the 4x3 shelf becomes 6x4 with every cell intact; the dense baseline cuts through boards (the .png files colour each part by the copy it came from)".into(),
     );
     Ok((lines.join("\n"), outputs))
 }
@@ -513,6 +542,17 @@ fn detection(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
     let labelled = super::detect::labelled_cloud(&scene.cloud, &det);
     outputs.push(write(&d.path("facade_scan.labels.ply"), &Model::from_point_cloud(labelled))?);
     let e = evaluate(&det.result, &scene.ground_truth, &EvalOptions::default())?;
+    let png = d.path("facade_scan.detection.png");
+    let title = format!(
+        "facade scan: {} classes found (EM + SC), F {:.3} against the ground truth",
+        det.result.classes.len(),
+        e.f
+    );
+    motif_detect::plot::plot_detections(&scene.cloud.positions, &det.labels, &det.result, &title, &png)?;
+    outputs.push(png.display().to_string());
+    let png = d.path("facade_scan.eval.png");
+    motif_detect::plot_pr_and_stress(&e, &png)?;
+    outputs.push(png.display().to_string());
     let gt_instances: usize = scene.ground_truth.classes.iter().map(|c| c.instances.len()).sum();
     let lines = [
         format!(
@@ -532,7 +572,7 @@ fn detection(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
             "against the ground truth at tau = 0.125: P {:.3}  R {:.3}  F {:.3}",
             e.precision, e.recall, e.f
         ),
-        "facade_scan.labels.ply colours each detected class; `motif eval` rescores the JSON".into(),
+        "facade_scan.labels.ply colours each detected class (as facade_scan.detection.png shows); `motif eval` rescores the JSON".into(),
     ];
     Ok((lines.join("\n"), outputs))
 }

@@ -164,10 +164,62 @@ fn extent_along(mesh: &TriMesh, d: [f64; 3]) -> f64 {
     hi - lo
 }
 
+/// What `--preview` writes above a retargeting: the method and the figures of thesis Fig. 4.8,
+/// a warning when seams have infinite cost, and each output triangle's copy (its voxel's step
+/// vector, numbered in order of first use with "copied in place" first) to colour it by.
+pub(crate) fn preview_text(
+    title: String,
+    res: &motif_retarget::retarget::Retargeted,
+) -> motif_retarget::plot::PreviewText {
+    let r = &res.report;
+    let mut copies: Vec<[i32; 3]> = vec![[0, 0, 0]];
+    let groups: Vec<u32> = res
+        .triangle_voxels
+        .iter()
+        .map(|&v| {
+            let k = res.voxel_labels[v as usize];
+            match copies.iter().position(|c| *c == k) {
+                Some(i) => i as u32,
+                None => {
+                    copies.push(k);
+                    (copies.len() - 1) as u32
+                }
+            }
+        })
+        .collect();
+    let method = match r.method {
+        RetargetMethod::Offsets => "the detected offsets",
+        RetargetMethod::Dense => "the dense baseline (regular offsets)",
+    };
+    let mut notes = vec![(
+        format!(
+            "with {method}: {} nodes, {} labels, energy {:.4}, graph cut {:.1} ms; colours: the copy each part came from (blue: in place)",
+            r.nodes, r.labels, r.energy, r.graph_cut_ms
+        ),
+        false,
+    )];
+    if r.infinite_seams > 0 {
+        notes.push((
+            format!(
+                "warning: at {} of {} seams one copy meets empty space in another (energy +inf); {}",
+                r.infinite_seams,
+                r.seams,
+                if r.output_boundary_edges == 0 {
+                    "the openings there were capped".to_string()
+                } else {
+                    format!("{} open boundary edges are left", r.output_boundary_edges)
+                }
+            ),
+            true,
+        ));
+    }
+    motif_retarget::plot::PreviewText { title, notes, output_groups: Some(groups) }
+}
+
 /// The preview camera: a three-quarter view (about 25° off the normal, so that recesses and
 /// depth show under the headlight) of the plane of the first two principal offsets, up along the
 /// second; with one offset, of the plane holding it and the bounding box's longest other axis.
-fn preview_camera(mesh: &TriMesh, principal: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
+pub(crate) fn preview_camera(mesh: &TriMesh, principal: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
     use motif_core::geometry::cross;
     let e = mesh.aabb().map_or([1.0; 3], |b| b.extent());
     let (a, b) = match principal {
@@ -444,55 +496,8 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     motif_core::io::write(&a.output, &Model::from_mesh(&res.mesh), &WriteOptions::default())?;
     if let Some(p) = &a.preview {
         let (view, up) = preview_camera(&mesh, &principal);
-        let r = &res.report;
-        // Each output triangle's copy: its voxel's step vector, numbered in order of first use
-        // with "copied in place" (0, 0, 0) first.
-        let mut copies: Vec<[i32; 3]> = vec![[0, 0, 0]];
-        let groups: Vec<u32> = res
-            .triangle_voxels
-            .iter()
-            .map(|&v| {
-                let k = res.voxel_labels[v as usize];
-                match copies.iter().position(|c| *c == k) {
-                    Some(i) => i as u32,
-                    None => {
-                        copies.push(k);
-                        (copies.len() - 1) as u32
-                    }
-                }
-            })
-            .collect();
-        let method = match r.method {
-            RetargetMethod::Offsets => "the detected offsets",
-            RetargetMethod::Dense => "the dense baseline (regular offsets)",
-        };
-        let mut notes = vec![(
-            format!(
-                "with {method}: {} nodes, {} labels, energy {:.4}, graph cut {:.1} ms; colours: the copy each part came from (blue: in place)",
-                r.nodes, r.labels, r.energy, r.graph_cut_ms
-            ),
-            false,
-        )];
-        if r.infinite_seams > 0 {
-            notes.push((
-                format!(
-                    "warning: at {} of {} seams one copy meets empty space in another (energy +inf); {}",
-                    r.infinite_seams,
-                    r.seams,
-                    if r.output_boundary_edges == 0 {
-                        "the openings there were capped".to_string()
-                    } else {
-                        format!("{} open boundary edges are left", r.output_boundary_edges)
-                    }
-                ),
-                true,
-            ));
-        }
-        let text = motif_retarget::plot::PreviewText {
-            title: format!("{}: steps {:+} {:+} {:+}", a.mesh.display(), steps[0], steps[1], steps[2]),
-            notes,
-            output_groups: Some(&groups),
-        };
+        let title = format!("{}: steps {:+} {:+} {:+}", a.mesh.display(), steps[0], steps[1], steps[2]);
+        let text = preview_text(title, &res);
         motif_retarget::plot::plot_retarget_preview(&mesh, &res.mesh, view, up, &text, p)?;
     }
     let r = &res.report;
