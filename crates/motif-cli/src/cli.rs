@@ -90,10 +90,10 @@ pub struct StudioArgs {
     /// A model under --root that every new page opens first (a path from the current folder,
     /// or from the root).
     pub model: Option<PathBuf>,
-    /// TCP port (default: a free port chosen by the system).
+    /// TCP port (0: a free port chosen by the system).
     #[arg(long, default_value_t = 0)]
     pub port: u16,
-    /// The only folder the studio reads and writes files in (default: the current directory).
+    /// The only folder the studio reads and writes files in ("." is the current directory).
     #[arg(long, default_value = ".")]
     pub root: PathBuf,
     /// Address to listen on. The default 127.0.0.1 keeps the studio on this machine; any other

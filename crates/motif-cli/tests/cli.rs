@@ -153,6 +153,8 @@ fn every_output_is_checked_before_any_work() {
     // first, and deform's whole solve).
     refused(&["retarget", "s.obj", "-o", "r.xyz", "--steps", "1"], "unsupported format \"xyz\"");
     refused(&["convert", "s.obj", "c.xyz"], "unsupported format");
+    // No extension at all is said so, not shown as the format "".
+    refused(&["convert", "s.obj", "c"], "no file extension to choose the format by");
     refused(&["sample", "s.obj", "p.stl", "--count", "100"], "STL holds only triangles");
     refused(&["offsets", "s.obj", "--plot", "o.svg"], "PNG");
     refused(&["retarget", "s.obj", "-o", "r.obj", "--steps", "1", "--preview", "p.jpg"], "PNG");
@@ -1663,6 +1665,19 @@ fn results_print_under_quiet_and_a_failing_stdout_is_an_error_not_a_panic() {
     assert!(motif(&["example", "gear", "g.obj"], d.path()).status.success());
     let o = motif(&["-q", "symmetry", "detect", "g.obj", "-o", "g.sym.json"], d.path());
     assert!(o.status.success() && stdout(&o).contains("global"), "{}{}", stdout(&o), stderr(&o));
+    // Commands whose result is the file they write say what it holds, under -q too (this
+    // was a note, so -q left them silent).
+    for (args, says) in [
+        (&["-q", "sample", "s.obj", "p.ply", "--count", "500"][..], "p.ply: 500 samples"),
+        (&["-q", "curvature", "p.ply", "k.csv"][..], "k.csv: 500 points"),
+        (&["-q", "normals", "p.ply", "n.ply"][..], "n.ply: 500 normals"),
+        (&["-q", "convert", "s.obj", "s.ply"][..], "s.ply: 984 vertices"),
+        (&["-q", "example", "fan", "f.obj"][..], "f.obj: fan:"),
+    ] {
+        let o = motif(args, d.path());
+        assert!(o.status.success() && stdout(&o).contains(says), "{args:?}: {}{}", stdout(&o), stderr(&o));
+        assert!(!stderr(&o).contains("wrote"), "{args:?}: {}", stderr(&o));
+    }
     // A JSON report written to a file leaves the text results on stdout.
     for args in [
         &["info", "s.obj", "--json", "i.json"][..],

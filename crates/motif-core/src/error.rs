@@ -61,7 +61,12 @@ pub enum Error {
     },
     /// The file name's extension names no format Motif reads or writes.
     #[error(
-        "{path}: unsupported format {extension:?} (Motif reads and writes .obj, .ply, .off, .stl, .gltf/.glb)"
+        "{path}: {} (Motif reads and writes .obj, .ply, .off, .stl, .gltf/.glb)",
+        if extension.is_empty() {
+            "no file extension to choose the format by".to_string()
+        } else {
+            format!("unsupported format {extension:?}")
+        }
     )]
     UnsupportedFormat {
         /// The file concerned.

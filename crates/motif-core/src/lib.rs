@@ -23,6 +23,7 @@ pub mod icp;
 pub mod io;
 pub mod mesh;
 pub mod normals;
+pub mod plotting;
 pub mod point_cloud;
 pub mod procedural;
 pub mod progress;

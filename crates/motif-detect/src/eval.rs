@@ -156,7 +156,8 @@ pub struct AnnotatedClassReport {
     pub found: usize,
     /// maxⱼ score(𝐃ʲ, 𝐆ⁱ) (eq. 5.4), this class's term of the recall's numerator.
     pub recalled: usize,
-    /// The detected class j attaining that maximum (the first on ties); `None` when it is 0.
+    /// The detected class j attaining that maximum (on ties, the one whose matching boxes overlap
+    /// most, then the first); `None` when it is 0.
     pub best_detected: Option<usize>,
 }
 
@@ -171,7 +172,8 @@ pub struct DetectedClassReport {
     pub instances: usize,
     /// maxᵢ score(𝐃ʲ, 𝐆ⁱ) (eq. 5.4), this class's term of the precision's numerator.
     pub credited: usize,
-    /// The annotated class i attaining that maximum (the first on ties); `None` when it is 0.
+    /// The annotated class i attaining that maximum (on ties, the one whose matching boxes overlap
+    /// most, then the first); `None` when it is 0.
     pub best_annotated: Option<usize>,
 }
 

@@ -10,6 +10,7 @@
 use std::path::Path;
 use std::sync::Once;
 
+use motif_core::plotting::TextFix;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
@@ -46,6 +47,24 @@ pub trait EvalCurves {
     fn stress_points(&self) -> Vec<(f64, f64)>;
     /// Per annotated class: instances, located, credited (summed over the scenes).
     fn annotated(&self) -> Vec<AnnotatedClassTotals>;
+    /// The precision side: per detected class (one scene) or per scene (several), a label, the
+    /// instances counted and those the precision credits.
+    fn precision_rows(&self) -> (&'static str, Vec<(String, usize, usize)>);
+}
+
+fn detected_rows(r: &EvalReport) -> Vec<(String, usize, usize)> {
+    let names: Vec<&str> = r.annotated.iter().map(|a| a.name.as_str()).collect();
+    r.detected
+        .iter()
+        .map(|d| {
+            let against = d.best_annotated.and_then(|i| names.get(i).copied()).unwrap_or("nothing");
+            (
+                format!("{}: {} of {} credited, as {against}", d.name, d.credited, d.instances),
+                d.instances,
+                d.credited,
+            )
+        })
+        .collect()
 }
 
 impl EvalCurves for EvalReport {
@@ -71,6 +90,9 @@ impl EvalCurves for EvalReport {
     }
     fn annotated(&self) -> Vec<AnnotatedClassTotals> {
         self.annotated.iter().map(AnnotatedClassTotals::from).collect()
+    }
+    fn precision_rows(&self) -> (&'static str, Vec<(String, usize, usize)>) {
+        ("(d) detected classes: what the precision credits", detected_rows(self))
     }
 }
 
@@ -109,10 +131,27 @@ impl EvalCurves for EvalSummary {
     fn annotated(&self) -> Vec<AnnotatedClassTotals> {
         self.annotated.clone()
     }
+    fn precision_rows(&self) -> (&'static str, Vec<(String, usize, usize)>) {
+        if let [scene] = self.scenes.as_slice() {
+            return scene.precision_rows();
+        }
+        // Detected classes are not comparable across scenes: one row per scene.
+        let rows = self
+            .scenes
+            .iter()
+            .map(|s| {
+                let n: usize = s.detected.iter().map(|d| d.instances).sum();
+                let c: usize = s.detected.iter().map(|d| d.credited).sum();
+                (format!("{}: {c} of {n} credited (P {:.3}, R {:.3})", s.scene, s.precision, s.recall), n, c)
+            })
+            .collect();
+        ("(d) scenes: what the precision credits", rows)
+    }
 }
 
-/// Draws the PR curve (left), the stress curve (middle) and the per-class shares (right) of
-/// `curves` to `path` (PNG, 1800 × 560 pixels).
+/// Draws the PR curve, the stress curve, the per-annotated-class shares (the recall's side) and
+/// the per-detected-class (or per-scene) credited shares (the precision's side) of `curves` to
+/// `path`, left to right (PNG, 2400 × 560 pixels).
 pub fn plot_pr_and_stress(curves: &impl EvalCurves, path: &Path) -> Result<()> {
     plot_pr_and_stress_titled(curves, &curves.title(), path)
 }
@@ -120,14 +159,15 @@ pub fn plot_pr_and_stress(curves: &impl EvalCurves, path: &Path) -> Result<()> {
 /// [`plot_pr_and_stress`] under another title (what was run, for a benchmark's picture).
 pub fn plot_pr_and_stress_titled(curves: &impl EvalCurves, title: &str, path: &Path) -> Result<()> {
     register_fonts();
-    let size = (1800u32, 560u32);
+    let size = (2400u32, 560u32);
     let mut buf = vec![255u8; size.0 as usize * size.1 as usize * 3];
     {
-        let root = BitMapBackend::with_buffer(&mut buf, size).into_drawing_area();
+        let root = TextFix(BitMapBackend::with_buffer(&mut buf, size)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
         let root = root.titled(title, (FONT, 20)).map_err(|e| plot_err(path, e))?;
-        let (left, rest) = root.split_horizontally(size.0 / 3);
-        let (right, classes) = rest.split_horizontally(size.0 / 3);
+        let (left, rest) = root.split_horizontally(size.0 / 4);
+        let (right, rest) = rest.split_horizontally(size.0 / 4);
+        let (classes, detected) = rest.split_horizontally(size.0 / 4);
         let pr_colour = RGBColor(214, 39, 40);
         let pr = curves.pr_points();
         let pr_caption = if pr.iter().any(|(l, _, _)| l.as_deref().is_some_and(|l| l.starts_with('−'))) {
@@ -170,6 +210,8 @@ pub fn plot_pr_and_stress_titled(curves: &impl EvalCurves, title: &str, path: &P
             path,
         )?;
         draw_class_shares(&classes, &curves.annotated(), path)?;
+        let (caption, rows) = curves.precision_rows();
+        draw_precision_rows(&detected, caption, &rows, path)?;
         root.present().map_err(|e| plot_err(path, e))?;
     }
     motif_core::io::write_png_rgb(path, size.0, size.1, &buf).map_err(|e| plot_err(path, e))
@@ -180,7 +222,7 @@ pub fn plot_pr_and_stress_titled(curves: &impl EvalCurves, title: &str, path: &P
 /// (the τ the figures are for); `note` a message in the middle (an empty or all-zero curve).
 #[allow(clippy::too_many_arguments)]
 fn draw_curve(
-    area: &DrawingArea<BitMapBackend, Shift>,
+    area: &DrawingArea<TextFix<BitMapBackend<'_>>, Shift>,
     points: &[(f64, f64)],
     labels: &[Option<String>],
     caption: &str,
@@ -266,13 +308,13 @@ const LEGEND_BAND: f64 = 0.6;
 /// (green), that are located but sit in other classes (orange) and that are missed (grey),
 /// labelled with the counts.
 fn draw_class_shares(
-    area: &DrawingArea<BitMapBackend, Shift>,
+    area: &DrawingArea<TextFix<BitMapBackend<'_>>, Shift>,
     classes: &[AnnotatedClassTotals],
     path: &Path,
 ) -> Result<()> {
     let rows = classes.len().max(1) as f64;
     let mut chart = ChartBuilder::on(area)
-        .caption("(c) annotated classes", (FONT, 18).into_font())
+        .caption("(c) annotated classes: what the recall credits", (FONT, 18).into_font())
         .margin(16)
         .x_label_area_size(40)
         .y_label_area_size(10)
@@ -332,6 +374,67 @@ fn draw_class_shares(
     Ok(())
 }
 
+/// One bar per row: the share the precision credits (green) and the rest (red), with its label.
+fn draw_precision_rows(
+    area: &DrawingArea<TextFix<BitMapBackend<'_>>, Shift>,
+    caption: &str,
+    rows: &[(String, usize, usize)],
+    path: &Path,
+) -> Result<()> {
+    let n = rows.len().max(1) as f64;
+    let mut chart = ChartBuilder::on(area)
+        .caption(caption, (FONT, 18).into_font())
+        .margin(16)
+        .x_label_area_size(40)
+        .y_label_area_size(10)
+        .build_cartesian_2d(0.0..1.0, -LEGEND_BAND..n)
+        .map_err(|e| plot_err(path, e))?;
+    chart
+        .configure_mesh()
+        .x_desc("share of the instances")
+        .y_labels(0)
+        .disable_y_mesh()
+        .label_style((FONT, 13))
+        .axis_desc_style((FONT, 14))
+        .light_line_style(RGBColor(235, 235, 235))
+        .draw()
+        .map_err(|e| plot_err(path, e))?;
+    let colours = [RGBColor(44, 160, 44), RGBColor(214, 39, 40)];
+    for (row, (_, instances, credited)) in rows.iter().enumerate() {
+        let y = n - row as f64 - 1.0;
+        let share = *credited as f64 / (*instances).max(1) as f64;
+        for (k, (from, to)) in [(0.0, share), (share, 1.0)].into_iter().enumerate() {
+            if to > from && *instances > 0 {
+                chart
+                    .draw_series(std::iter::once(Rectangle::new(
+                        [(from, y + 0.1), (to, y + 0.5)],
+                        colours[k].filled(),
+                    )))
+                    .map_err(|e| plot_err(path, e))?;
+            }
+        }
+    }
+    for (k, (&colour, name)) in
+        colours.iter().zip(["credited", "not credited (other blocks, clutter)"]).enumerate()
+    {
+        let (x, y) = (k as f64 / 3.0, -LEGEND_BAND / 2.0);
+        chart
+            .draw_series(std::iter::once(
+                EmptyElement::at((x, y))
+                    + Rectangle::new([(0, -6), (14, 6)], colour.filled())
+                    + Text::new(name, (20, -7), (FONT, 13).into_font()),
+            ))
+            .map_err(|e| plot_err(path, e))?;
+    }
+    let label_size = if rows.len() > 12 { 11 } else { 14 };
+    chart
+        .draw_series(rows.iter().enumerate().map(|(row, (text, _, _))| {
+            Text::new(text.clone(), (0.005, n - row as f64 - 0.12), (FONT, label_size).into_font())
+        }))
+        .map_err(|e| plot_err(path, e))?;
+    Ok(())
+}
+
 /// One row of `motif bench detect`: a method on the scenes of one difficulty.
 #[derive(Debug, Clone)]
 pub struct BenchRow {
@@ -361,7 +464,7 @@ pub fn plot_bench(rows: &[BenchRow], title: &str, tau: f64, path: &Path) -> Resu
     let colours = [RGBColor(214, 39, 40), RGBColor(31, 119, 180), RGBColor(120, 120, 120)];
     let colour = |m: &str| colours[methods.iter().position(|x| *x == m).unwrap_or(0) % colours.len()];
     {
-        let root = BitMapBackend::with_buffer(&mut buf, size).into_drawing_area();
+        let root = TextFix(BitMapBackend::with_buffer(&mut buf, size)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
         let root = root.titled(title, (FONT, 20)).map_err(|e| plot_err(path, e))?;
         let (left, right) = root.split_horizontally(size.0 / 2);
@@ -604,7 +707,7 @@ pub fn plot_detections(
         RGBColor(k[0], k[1], k[2])
     };
     {
-        let root = BitMapBackend::with_buffer(&mut buf, size).into_drawing_area();
+        let root = TextFix(BitMapBackend::with_buffer(&mut buf, size)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
         let root = root.titled(title, (FONT, 20)).map_err(|e| plot_err(path, e))?;
         let (views, legend) = root.split_horizontally(size.0 - 300);

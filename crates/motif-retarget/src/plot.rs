@@ -16,6 +16,7 @@
 use std::path::Path;
 use std::sync::Once;
 
+use motif_core::plotting::TextFix;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
@@ -43,12 +44,12 @@ fn plot_err(path: &Path, e: impl std::fmt::Display) -> OffsetsError {
 fn render_png(
     path: &Path,
     size: (u32, u32),
-    draw: impl FnOnce(&DrawingArea<BitMapBackend, Shift>) -> Result<()>,
+    draw: impl FnOnce(&DrawingArea<TextFix<BitMapBackend<'_>>, Shift>) -> Result<()>,
 ) -> Result<()> {
     register_fonts();
     let mut buf = vec![255u8; size.0 as usize * size.1 as usize * 3];
     {
-        let root = BitMapBackend::with_buffer(&mut buf, size).into_drawing_area();
+        let root = TextFix(BitMapBackend::with_buffer(&mut buf, size)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
         draw(&root)?;
         root.present().map_err(|e| plot_err(path, e))?;
@@ -156,7 +157,7 @@ pub fn plot_offsets(analysis: &OffsetAnalysis, title: &str, path: &Path) -> Resu
 }
 
 fn draw_projection(
-    area: &DrawingArea<BitMapBackend, Shift>,
+    area: &DrawingArea<TextFix<BitMapBackend<'_>>, Shift>,
     analysis: &OffsetAnalysis,
     a: usize,
     b: usize,
@@ -272,16 +273,29 @@ fn draw_projection(
         chart
             .draw_series(std::iter::once(Polygon::new(vec![(x, y), left, right], colour.filled())))
             .map_err(|e| plot_err(path, e))?;
-        // The label beyond the arrow's head, on a white ground so that peak circles and bins
-        // do not strike through it.
+        // The label beside the arrow's middle, on its left (between the origin and the first
+        // peak, where no peak circle is), on a white ground so that bins do not strike through.
         let label = format!("p{i}{} ({})", if rejected { " rejected" } else { "" }, p.support);
-        let (lx, ly) = (x + 0.05 * extent * ux, y + 0.05 * extent * uy + 0.02 * extent);
-        let width = 0.0125 * extent * label.chars().count() as f64;
-        let lx = if ux < -0.5 { lx - width } else { lx };
+        let (pw, ph) = chart.plotting_area().dim_in_pixel();
+        let per_px = (2.0 * extent / pw as f64, 2.0 * extent / ph as f64);
+        let (tw, th) = (
+            motif_core::plotting::text_width(&label, 15.0, plotters::style::FontStyle::Bold) * per_px.0,
+            16.0 * per_px.1,
+        );
+        // Left of the arrow's direction, far enough that the box clears the shaft.
+        let (nx, ny) = (-uy, ux);
+        let (mx, my) = (
+            0.5 * x + nx * (0.03 * extent + 0.5 * tw.max(th) * nx.abs()),
+            0.5 * y + ny * (0.03 * extent + 0.5 * th),
+        );
+        let (lx, ly) = (mx - 0.5 * tw, my + 0.5 * th);
         chart
             .draw_series(std::iter::once(Rectangle::new(
-                [(lx - 0.01 * extent, ly + 0.01 * extent), (lx + width, ly - 0.055 * extent)],
-                RGBColor(255, 255, 255).mix(0.85).filled(),
+                [
+                    (lx - 3.0 * per_px.0, ly + 2.0 * per_px.1),
+                    (lx + tw + 3.0 * per_px.0, ly - th - 2.0 * per_px.1),
+                ],
+                RGBColor(255, 255, 255).filled(),
             )))
             .map_err(|e| plot_err(path, e))?;
         chart
@@ -296,7 +310,7 @@ fn draw_projection(
 }
 
 fn draw_summary(
-    area: &DrawingArea<BitMapBackend, Shift>,
+    area: &DrawingArea<TextFix<BitMapBackend<'_>>, Shift>,
     analysis: &OffsetAnalysis,
     title: &str,
     path: &Path,
@@ -495,7 +509,7 @@ const TAU_COLOURS: [RGBColor; 6] = [
 ];
 
 fn draw_curves(
-    area: &DrawingArea<BitMapBackend, Shift>,
+    area: &DrawingArea<TextFix<BitMapBackend<'_>>, Shift>,
     report: &SparsityReport,
     xmax: f64,
     caption: &str,
@@ -582,27 +596,37 @@ fn draw_curves(
             continue;
         }
         let name = if r.category == Category::ManMade { "man-made" } else { "natural" };
-        // Labels right of their marker, or left of it near the right edge.
+        // Labels right of their marker, or left of it near the right edge, on a white box so
+        // that the curves do not run through them: the thesis's below its cross, Motif's above
+        // its dot (the two are a few points apart for the natural models).
         let right_edge = at.0 > 0.7 * xhi;
-        let label_style = |colour: &'static RGBColor| {
-            let style = TextStyle::from((FONT, 12).into_font()).color(colour);
-            if right_edge {
-                style.pos(plotters::style::text_anchor::Pos::new(
-                    plotters::style::text_anchor::HPos::Right,
-                    plotters::style::text_anchor::VPos::Top,
-                ))
-            } else {
-                style
-            }
+        let (pw, ph) = chart.plotting_area().dim_in_pixel();
+        let per_px = (xhi / pw as f64, 100.0 / ph as f64);
+        let mut boxed = |text: String, corner: (f64, f64), below: bool, colour: RGBColor| -> Result<()> {
+            let w =
+                motif_core::plotting::text_width(&text, 12.0, plotters::style::FontStyle::Normal) * per_px.0;
+            let h = 12.0 * per_px.1;
+            let x0 = if right_edge { corner.0 - 0.4 - w } else { corner.0 + 0.4 };
+            let top = if below { corner.1 - 1.0 } else { corner.1 + 1.5 + h };
+            chart
+                .draw_series(std::iter::once(Rectangle::new(
+                    [
+                        (x0 - 2.0 * per_px.0, top + 2.0 * per_px.1),
+                        (x0 + w + 2.0 * per_px.0, top - h - 2.0 * per_px.1),
+                    ],
+                    WHITE.filled(),
+                )))
+                .map_err(|e| plot_err(path, e))?;
+            chart
+                .draw_series(std::iter::once(Text::new(
+                    text,
+                    (x0, top),
+                    (FONT, 12).into_font().color(&colour),
+                )))
+                .map_err(|e| plot_err(path, e))?;
+            Ok(())
         };
-        let dx = if right_edge { -0.4 } else { 0.4 };
-        chart
-            .draw_series(std::iter::once(Text::new(
-                format!("thesis {name} {:.1}%", 100.0 * r.offsets),
-                (at.0 + dx, at.1 + 1.0),
-                label_style(&BLACK),
-            )))
-            .map_err(|e| plot_err(path, e))?;
+        boxed(format!("thesis {name} {:.1}%", 100.0 * r.offsets), at, true, BLACK)?;
         let measured = report.categories.iter().find(|c| c.category == r.category).and_then(|c| {
             let k = c.per_tau.iter().position(|t| (t.tau - r.tau).abs() < 1e-9)?;
             let i = report.options.read_at.iter().position(|&b| (b - r.bins).abs() < 1e-9)?;
@@ -611,15 +635,9 @@ fn draw_curves(
         if let Some((k, share)) = measured {
             let colour = TAU_COLOURS[k % TAU_COLOURS.len()];
             let dot = (100.0 * r.bins, 100.0 * share);
+            boxed(format!("Motif {name} {:.1}%", 100.0 * share), dot, false, colour)?;
             chart
                 .draw_series(std::iter::once(Circle::new(dot, 5, colour.filled())))
-                .map_err(|e| plot_err(path, e))?;
-            chart
-                .draw_series(std::iter::once(Text::new(
-                    format!("Motif {name} {:.1}%", 100.0 * share),
-                    (dot.0 + dx, dot.1 - 1.0),
-                    label_style(&TAU_COLOURS[k % TAU_COLOURS.len()]),
-                )))
                 .map_err(|e| plot_err(path, e))?;
         }
     }
@@ -819,7 +837,7 @@ pub fn plot_retarget_preview(
     }
     register_fonts();
     {
-        let root = BitMapBackend::with_buffer(&mut rgb, (w as u32, h as u32)).into_drawing_area();
+        let root = TextFix(BitMapBackend::with_buffer(&mut rgb, (w as u32, h as u32))).into_drawing_area();
         let text = |s: &str, x: i32, y: i32, size: u32| {
             root.draw(&Text::new(s.to_string(), (x, y), (FONT, size).into_font().color(&BLACK)))
                 .map_err(|e| plot_err(path, e))

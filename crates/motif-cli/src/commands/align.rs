@@ -135,5 +135,8 @@ pub fn run(a: AlignArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     for row in r.transform {
         println!("  {:>12.6} {:>12.6} {:>12.6} {:>12.6}", row[0], row[1], row[2], row[3]);
     }
+    if let Some(out) = &a.output {
+        super::note(g, format!("wrote {} (the source moved onto the target)", out.display()));
+    }
     Ok(())
 }

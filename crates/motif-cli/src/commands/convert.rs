@@ -43,7 +43,7 @@ pub fn run(a: ConvertArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         ms: ms_since(t),
     };
     if !crate::output::json_on_stdout(&a.json.json) {
-        super::note(g, format!("wrote {} ({} vertices, {} triangles)", r.output, r.vertices, r.triangles));
+        super::written(g, &r.output, format!("{} vertices, {} triangles", r.vertices, r.triangles));
     }
     maybe_json(&a.json.json, &r)
 }

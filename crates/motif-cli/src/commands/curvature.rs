@@ -129,11 +129,12 @@ pub fn run(a: CurvatureArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         ));
     }
     if !crate::output::json_on_stdout(&a.json.json) {
-        super::note(
+        super::written(
             g,
+            &r.output,
             format!(
-                "wrote {} ({} points, {} fitted; median k1 {:.4}, k2 {:.4}; {:.1} ms)",
-                r.output, r.points, r.fitted, r.k1.median, r.k2.median, r.ms
+                "{} points, {} fitted; median k1 {:.4}, k2 {:.4}; {:.1} ms",
+                r.points, r.fitted, r.k1.median, r.k2.median, r.ms
             ),
         );
     }

@@ -129,6 +129,16 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let model = bar.spin("reading", || super::read_model_for_geometry(&a.input))?;
     let scene = a.input.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let t = std::time::Instant::now();
+    if model.is_mesh() {
+        super::note(
+            g,
+            format!(
+                "{} is a mesh: it is sampled like a scan; for exact repetition in a clean model, \
+                 `motif offsets` (translations) and `motif symmetry detect` (symmetries) are faster and exact",
+                a.input.display()
+            ),
+        );
+    }
     let detection = if model.is_mesh() {
         motif_detect::detect_mesh(&model.mesh(), &scene, &o, &bar)
     } else {

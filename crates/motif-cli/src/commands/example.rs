@@ -56,11 +56,11 @@ pub fn run(a: ExampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         let text = sample_drag(&ex.mesh).to_json();
         motif_core::io::write_atomic(p, |w| w.write_all(text.as_bytes()))?;
     }
-    super::note(
+    super::written(
         g,
+        output.display(),
         format!(
-            "wrote {} ({}: {} vertices, {} triangles{})",
-            output.display(),
+            "{}: {} vertices, {} triangles{}",
             ex.name,
             ex.mesh.num_vertices(),
             ex.mesh.num_triangles(),
@@ -146,11 +146,11 @@ fn run_scene(kind: SceneKind, output: &Path, a: &ExampleArgs, g: &GlobalArgs) ->
         0 => String::new(),
         h => format!(" ({h} more hidden from the scanners, not annotated)"),
     };
-    super::note(
+    super::written(
         g,
+        output.display(),
         format!(
-            "wrote {} ({}, {}: {n} points, {classes} classes, {instances} instances{hidden}, noise {:.1} mm, {:.0}% of the surface visible; {seconds:.2} s){}",
-            output.display(),
+            "{}, {}: {n} points, {classes} classes, {instances} instances{hidden}, noise {:.1} mm, {:.0}% of the surface visible; {seconds:.2} s{}",
             kind.name(),
             difficulty.name(),
             1000.0 * scene.stats.noise_sigma,

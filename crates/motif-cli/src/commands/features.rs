@@ -94,11 +94,11 @@ pub fn run_shot(a: ShotArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         ));
     }
     if !crate::output::json_on_stdout(&a.json.json) {
-        super::note(
+        super::written(
             g,
+            &r.output,
             format!(
-                "wrote {} ({} keypoints, {} valid, {} layout, {:.1} ms)",
-                r.output,
+                "{} keypoints, {} valid, {} layout, {:.1} ms",
                 r.keypoints,
                 r.valid,
                 if csv { "CSV" } else { "PEERSHOT" },

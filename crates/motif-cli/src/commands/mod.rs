@@ -143,6 +143,15 @@ pub fn warn(msg: impl AsRef<str>) {
     eprintln!("warning: {}", msg.as_ref());
 }
 
+/// For a command whose result is the file it wrote: what the file holds, on stdout as
+/// `OUTPUT: SUMMARY` (a result: printed under --quiet too), then the note `wrote OUTPUT` on
+/// stderr (hidden by --quiet). Before, both were one note, so --quiet hid the only result of
+/// `curvature`, `sample`, `normals`, `features shot`, `convert` and `example`.
+pub fn written(g: &crate::cli::GlobalArgs, output: impl std::fmt::Display, summary: impl AsRef<str>) {
+    println!("{output}: {}", summary.as_ref());
+    note(g, format!("wrote {output}"));
+}
+
 /// Prints an informational line on stderr unless quiet (stdout is kept for results).
 pub fn note(g: &crate::cli::GlobalArgs, msg: impl AsRef<str>) {
     if !g.quiet {

@@ -80,7 +80,7 @@ pub fn run(a: NormalsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         ms,
     };
     if !crate::output::json_on_stdout(&a.json.json) {
-        super::note(g, format!("wrote {} ({} normals, {}, {:.1} ms)", r.output, r.points, r.method, r.ms));
+        super::written(g, &r.output, format!("{} normals, {}, {:.1} ms", r.points, r.method, r.ms));
     }
     maybe_json(&a.json.json, &r)
 }

@@ -496,8 +496,14 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     motif_core::io::write(&a.output, &Model::from_mesh(&res.mesh), &WriteOptions::default())?;
     if let Some(p) = &a.preview {
         let (view, up) = preview_camera(&mesh, &principal);
-        let title = format!("{}: steps {:+} {:+} {:+}", a.mesh.display(), steps[0], steps[1], steps[2]);
-        let text = preview_text(title, &res);
+        let shown: Vec<String> =
+            steps[..principal.len().clamp(1, 3)].iter().map(|s| format!("{s:+}")).collect();
+        let title = format!("{}: steps {}", a.mesh.display(), shown.join(" "));
+        let mut text = preview_text(title, &res);
+        if a.offsets.is_some() && res.report.method == RetargetMethod::Offsets {
+            text.notes[0].0 =
+                text.notes[0].0.replacen("the detected offsets", "the offsets given (--offsets)", 1);
+        }
         motif_retarget::plot::plot_retarget_preview(&mesh, &res.mesh, view, up, &text, p)?;
     }
     let r = &res.report;
@@ -549,6 +555,15 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 r.reoriented_triangles
             );
         }
+    }
+    // Edges whose two triangles run the same way: seams where copies meet turned against each
+    // other, which repair did not resolve (a viewer shades them inside out). Said, not hidden.
+    let (in_mis, out_mis) = (mesh.edge_stats().misoriented, res.mesh.edge_stats().misoriented);
+    if out_mis > in_mis {
+        super::warn(format!(
+            "the output has {out_mis} misoriented edges (the input has {in_mis}): at some seams the copies' \
+             triangles meet with opposite orientations (`motif info` counts them)"
+        ));
     }
     if r.infinite_seams > 0 {
         let dims = principal.len().clamp(1, 3);

@@ -95,10 +95,7 @@ pub fn run(a: SampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     };
     if !crate::output::json_on_stdout(&a.json.json) {
         let rad = r.radius.map(|x| format!(", radius {x:.6}")).unwrap_or_default();
-        super::note(
-            g,
-            format!("wrote {} ({} samples, {}{rad}, {:.1} ms)", r.output, r.samples, r.method, r.ms),
-        );
+        super::written(g, &r.output, format!("{} samples, {}{rad}, {:.1} ms", r.samples, r.method, r.ms));
     }
     maybe_json(&a.json.json, &r)
 }

@@ -76,7 +76,7 @@ pub enum RetargetError {
     },
     /// The problem is larger than the configured limit (voxels of the output grid, or labels).
     #[error(
-        "the {what} would have {value} {unit} (limit {limit}); use fewer steps or larger principal offsets, or set `force` (`--force`) to run anyway"
+        "the {what} would have {value} {unit} (limit {limit}); use fewer steps or larger principal offsets, or pass --force to run anyway"
     )]
     TooLarge {
         /// `"retargeting space"` or `"offset space"`.
