@@ -1732,6 +1732,11 @@ fn option_errors_speak_in_the_users_terms() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("z = 5 (it stays 0.3"), "{}", stderr(&o));
     assert!(!d.path().join("r.obj").exists());
+    // A size no grid reaches is said in the user's terms, not as 2147483647 steps.
+    let o = motif(&["retarget", "s.obj", "-o", "r.obj", "--target-size", "1e9,-,-"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("not a size a model can be resized to"), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("2147483647") && !d.path().join("r.obj").exists());
     let o = motif(&["--force", "retarget", "s.obj", "-o", "r.obj", "--steps", "10000,0"], d.path());
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("--force does not lift"), "{}", stderr(&o));

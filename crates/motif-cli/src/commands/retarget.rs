@@ -414,7 +414,17 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 let len = o.iter().map(|x| x * x).sum::<f64>().sqrt();
                 let d = normalize(*o).unwrap_or([1.0, 0.0, 0.0]);
                 let want: f64 = (0..3).map(|i| d[i].abs() * size[i]).sum();
-                s[k] = ((want - extent_along(&mesh, d)) / len).round() as i32;
+                let steps = ((want - extent_along(&mesh, d)) / len).round();
+                // Beyond any grid the limits allow (10⁶ voxels): said in the user's terms
+                // rather than as a step count saturated at 2³¹ − 1.
+                if steps.abs() > 1e6 {
+                    return Err(bad_input(format!(
+                        "--target-size: {want} along principal offset {k} would take {steps:.0} cells of {} model units; \
+                         that is not a size a model can be resized to",
+                        motif_core::geometry::format_length(len, len, 6)
+                    )));
+                }
+                s[k] = steps as i32;
             }
             // An axis that no offset reaches (no offset has 5% of its length along it) keeps
             // its size: asking for another one there is refused, as --steps along a direction
