@@ -312,54 +312,9 @@ fn draw_class_shares(
     classes: &[AnnotatedClassTotals],
     path: &Path,
 ) -> Result<()> {
-    let rows = classes.len().max(1) as f64;
-    let mut chart = ChartBuilder::on(area)
-        .caption("(c) annotated classes: what the recall credits", (FONT, 18).into_font())
-        .margin(16)
-        .x_label_area_size(40)
-        .y_label_area_size(10)
-        .build_cartesian_2d(0.0..1.0, -LEGEND_BAND..rows)
-        .map_err(|e| plot_err(path, e))?;
-    chart
-        .configure_mesh()
-        .x_desc("share of the class's instances")
-        .y_labels(0)
-        .disable_y_mesh()
-        .label_style((FONT, 13))
-        .axis_desc_style((FONT, 14))
-        .light_line_style(RGBColor(235, 235, 235))
-        .draw()
-        .map_err(|e| plot_err(path, e))?;
-    let colours = [RGBColor(44, 160, 44), RGBColor(255, 127, 14), RGBColor(160, 160, 160)];
-    let names = ["credited", "elsewhere (in other classes)", "missed"];
-    for (k, (&colour, name)) in colours.iter().zip(names).enumerate() {
-        let bars = classes.iter().enumerate().filter_map(move |(row, c)| {
-            let n = c.instances.max(1) as f64;
-            let parts = [c.recalled, c.elsewhere(), c.missed()];
-            let from = parts[..k].iter().sum::<usize>() as f64 / n;
-            let to = from + parts[k] as f64 / n;
-            // Top row first; the bar fills the lower half of its row, the label the upper half.
-            let y = rows - row as f64 - 1.0;
-            (to > from).then(|| Rectangle::new([(from, y + 0.1), (to, y + 0.5)], colour.filled()))
-        });
-        chart.draw_series(bars).map_err(|e| plot_err(path, e))?;
-        // The legend, one line in the band below the bars (a legend box would hide bars).
-        let x = k as f64 / 3.0;
-        let y = -LEGEND_BAND / 2.0;
-        chart
-            .draw_series(std::iter::once(
-                EmptyElement::at((x, y)) + Rectangle::new([(0, -6), (14, 6)], colour.filled()),
-            ))
-            .map_err(|e| plot_err(path, e))?;
-        chart
-            .draw_series(std::iter::once(
-                EmptyElement::at((x, y)) + Text::new(name, (20, -7), (FONT, 13).into_font()),
-            ))
-            .map_err(|e| plot_err(path, e))?;
-    }
-    let label_size = if classes.len() > 12 { 11 } else { 14 };
-    chart
-        .draw_series(classes.iter().enumerate().map(|(row, c)| {
+    let rows: Vec<(String, Vec<usize>)> = classes
+        .iter()
+        .map(|c| {
             let text = format!(
                 "{}: {} of {} credited, {} elsewhere, {} missed",
                 c.name,
@@ -368,17 +323,32 @@ fn draw_class_shares(
                 c.elsewhere(),
                 c.missed()
             );
-            Text::new(text, (0.005, rows - row as f64 - 0.12), (FONT, label_size).into_font())
-        }))
-        .map_err(|e| plot_err(path, e))?;
-    Ok(())
+            (text, vec![c.recalled, c.elsewhere(), c.missed()])
+        })
+        .collect();
+    draw_share_rows(
+        area,
+        "(c) annotated classes: what the recall credits",
+        "share of the class's instances",
+        &rows,
+        &[
+            (RGBColor(44, 160, 44), "credited"),
+            (RGBColor(255, 127, 14), "elsewhere (in other classes)"),
+            (RGBColor(160, 160, 160), "missed"),
+        ],
+        path,
+    )
 }
 
-/// One bar per row: the share the precision credits (green) and the rest (red), with its label.
-fn draw_precision_rows(
+/// One labelled bar per row, split into `rows[i].1`'s parts (as shares of their sum) in the
+/// colours of `legend`, top row first; the legend on one line in the band below the bars (a
+/// legend box would hide bars).
+fn draw_share_rows(
     area: &DrawingArea<TextFix<BitMapBackend<'_>>, Shift>,
     caption: &str,
-    rows: &[(String, usize, usize)],
+    x_desc: &str,
+    rows: &[(String, Vec<usize>)],
+    legend: &[(RGBColor, &str)],
     path: &Path,
 ) -> Result<()> {
     let n = rows.len().max(1) as f64;
@@ -391,7 +361,7 @@ fn draw_precision_rows(
         .map_err(|e| plot_err(path, e))?;
     chart
         .configure_mesh()
-        .x_desc("share of the instances")
+        .x_desc(x_desc)
         .y_labels(0)
         .disable_y_mesh()
         .label_style((FONT, 13))
@@ -399,40 +369,58 @@ fn draw_precision_rows(
         .light_line_style(RGBColor(235, 235, 235))
         .draw()
         .map_err(|e| plot_err(path, e))?;
-    let colours = [RGBColor(44, 160, 44), RGBColor(214, 39, 40)];
-    for (row, (_, instances, credited)) in rows.iter().enumerate() {
-        let y = n - row as f64 - 1.0;
-        let share = *credited as f64 / (*instances).max(1) as f64;
-        for (k, (from, to)) in [(0.0, share), (share, 1.0)].into_iter().enumerate() {
-            if to > from && *instances > 0 {
-                chart
-                    .draw_series(std::iter::once(Rectangle::new(
-                        [(from, y + 0.1), (to, y + 0.5)],
-                        colours[k].filled(),
-                    )))
-                    .map_err(|e| plot_err(path, e))?;
-            }
-        }
-    }
-    for (k, (&colour, name)) in
-        colours.iter().zip(["credited", "not credited (other blocks, clutter)"]).enumerate()
-    {
-        let (x, y) = (k as f64 / 3.0, -LEGEND_BAND / 2.0);
+    for (k, &(colour, name)) in legend.iter().enumerate() {
+        let bars = rows.iter().enumerate().filter_map(move |(row, (_, parts))| {
+            let total = parts.iter().sum::<usize>().max(1) as f64;
+            let from = parts[..k.min(parts.len())].iter().sum::<usize>() as f64 / total;
+            let to = from + parts.get(k).copied().unwrap_or(0) as f64 / total;
+            // The bar fills the lower half of its row, the label the upper half.
+            let y = n - row as f64 - 1.0;
+            (to > from).then(|| Rectangle::new([(from, y + 0.1), (to, y + 0.5)], colour.filled()))
+        });
+        chart.draw_series(bars).map_err(|e| plot_err(path, e))?;
+        let (x, y) = (k as f64 / legend.len().max(3) as f64, -LEGEND_BAND / 2.0);
         chart
             .draw_series(std::iter::once(
                 EmptyElement::at((x, y))
                     + Rectangle::new([(0, -6), (14, 6)], colour.filled())
-                    + Text::new(name, (20, -7), (FONT, 13).into_font()),
+                    + Text::new(name.to_string(), (20, -7), (FONT, 13).into_font()),
             ))
             .map_err(|e| plot_err(path, e))?;
     }
     let label_size = if rows.len() > 12 { 11 } else { 14 };
     chart
-        .draw_series(rows.iter().enumerate().map(|(row, (text, _, _))| {
+        .draw_series(rows.iter().enumerate().map(|(row, (text, _))| {
             Text::new(text.clone(), (0.005, n - row as f64 - 0.12), (FONT, label_size).into_font())
         }))
         .map_err(|e| plot_err(path, e))?;
     Ok(())
+}
+
+/// One bar per row: the share the precision credits (green) and the rest (red), with its label.
+fn draw_precision_rows(
+    area: &DrawingArea<TextFix<BitMapBackend<'_>>, Shift>,
+    caption: &str,
+    rows: &[(String, usize, usize)],
+    path: &Path,
+) -> Result<()> {
+    let rows: Vec<(String, Vec<usize>)> = rows
+        .iter()
+        .map(|(text, instances, credited)| {
+            (text.clone(), vec![*credited, instances.saturating_sub(*credited)])
+        })
+        .collect();
+    draw_share_rows(
+        area,
+        caption,
+        "share of the instances",
+        &rows,
+        &[
+            (RGBColor(44, 160, 44), "credited"),
+            (RGBColor(214, 39, 40), "not credited (other blocks, clutter)"),
+        ],
+        path,
+    )
 }
 
 /// One row of `motif bench detect`: a method on the scenes of one difficulty.

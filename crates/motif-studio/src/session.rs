@@ -400,16 +400,32 @@ pub fn save_annotation(shared: &Shared, path: &str, overwrite: bool) -> Result<V
         .annotation
         .as_ref()
         .ok_or_else(|| StudioError::NotReady("no annotation yet: detect or load one".to_string()))?;
+    save_json_document(&s, path, overwrite, "an annotation", "model.sym.json", |file| {
+        write_json_atomic(file, annotation)
+    })
+}
+
+/// Writes a JSON document under the root for the save requests: the name must end in .json
+/// (`what` and `example` say what it is), inputs are never replaced and an existing file only
+/// with `overwrite`.
+fn save_json_document(
+    s: &Session,
+    path: &str,
+    overwrite: bool,
+    what: &str,
+    example: &str,
+    write: impl FnOnce(&std::path::Path) -> Result<()>,
+) -> Result<Vec<Out>> {
     if !path.to_ascii_lowercase().ends_with(".json") {
         return Err(StudioError::BadPath {
             path: shorten(path),
-            problem: "an annotation is a JSON document: name it .json (e.g. model.sym.json)".to_string(),
+            problem: format!("{what} is a JSON document: name it .json (e.g. {example})"),
         });
     }
     let _writes = writes_lock();
     let file = s.sandbox.resolve_write(path, &s.inputs)?;
     check_fresh(&file, path, overwrite)?;
-    write_json_atomic(&file, annotation)?;
+    write(&file)?;
     Ok(vec![Out::Text(ServerMessage::Saved { paths: vec![s.sandbox.display(&file)] })])
 }
 
@@ -912,18 +928,9 @@ pub fn save_detections(shared: &Shared, path: &str, overwrite: bool) -> Result<V
         .detections
         .as_ref()
         .ok_or_else(|| StudioError::NotReady("no detections yet: detect or load them".to_string()))?;
-    if !path.to_ascii_lowercase().ends_with(".json") {
-        return Err(StudioError::BadPath {
-            path: shorten(path),
-            problem: "a detection result is a JSON document: name it .json (e.g. model.detect.json)"
-                .to_string(),
-        });
-    }
-    let _writes = writes_lock();
-    let file = s.sandbox.resolve_write(path, &s.inputs)?;
-    check_fresh(&file, path, overwrite)?;
-    result.write(&file)?;
-    Ok(vec![Out::Text(ServerMessage::Saved { paths: vec![s.sandbox.display(&file)] })])
+    save_json_document(&s, path, overwrite, "a detection result", "model.detect.json", |file| {
+        Ok(result.write(file)?)
+    })
 }
 
 /// Building-block detection of a model (`motif_detect`, thesis chapter 5): the one place the
