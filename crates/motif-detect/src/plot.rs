@@ -668,17 +668,9 @@ pub fn plot_detections(
     register_fonts();
     let size = (1800u32, 900u32);
     let mut buf = vec![255u8; size.0 as usize * size.1 as usize * 3];
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for p in positions {
-        for k in 0..3 {
-            lo[k] = lo[k].min(p[k]);
-            hi[k] = hi[k].max(p[k]);
-        }
-    }
-    if !(0..3).all(|k| hi[k] >= lo[k]) {
-        return Err(plot_err(path, "no points to draw"));
-    }
+    let bounds = motif_core::geometry::Aabb::from_points(positions)
+        .ok_or_else(|| plot_err(path, "no points to draw"))?;
+    let (lo, hi) = (bounds.min, bounds.max);
     let mut axes = [0usize, 1, 2];
     axes.sort_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])));
     // Each panel drops one axis and keeps the other two in x, y, z order.

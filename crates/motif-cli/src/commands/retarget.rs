@@ -519,7 +519,8 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let r = &res.report;
     // Results print under --quiet too (only the "wrote" notes are quiet), and the warning
     // always does; a JSON report on stdout replaces the text.
-    let input_boundary = mesh.edge_stats().boundary;
+    let input_edges = mesh.edge_stats();
+    let input_boundary = input_edges.boundary;
     if !crate::output::json_on_stdout(&a.json.json) {
         for (k, o) in principal.iter().enumerate() {
             let len = |x: f64| motif_core::geometry::format_length(x, motif_core::geometry::norm(*o), 6);
@@ -568,7 +569,7 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     }
     // Edges whose two triangles run the same way: seams where copies meet turned against each
     // other, which repair did not resolve (a viewer shades them inside out). Said, not hidden.
-    let (in_mis, out_mis) = (mesh.edge_stats().misoriented, res.mesh.edge_stats().misoriented);
+    let (in_mis, out_mis) = (input_edges.misoriented, res.mesh.edge_stats().misoriented);
     if out_mis > in_mis {
         super::warn(format!(
             "the output has {out_mis} misoriented edges (the input has {in_mis}): at some seams the copies' \
