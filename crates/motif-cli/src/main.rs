@@ -46,8 +46,52 @@ fn parse_arguments() -> cli::Cli {
         cmd.mut_args(|a| if a.get_action().takes_values() { a.allow_negative_numbers(true) } else { a })
             .mut_subcommands(negatives)
     }
-    let matches = negatives(cli::Cli::command()).get_matches();
+    let mut cmd = negatives(cli::Cli::command());
+    let matches = cmd.try_get_matches_from_mut(std::env::args_os()).unwrap_or_else(|e| {
+        picture_flag_error(&cmd, &e).unwrap_or(e).exit();
+    });
     cli::Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit())
+}
+
+/// `motif retarget` draws its picture with `--preview`, every other command with `--plot`: an
+/// unknown `--plot` (or `--preview`) on a command that has the other gets a tip naming it, instead
+/// of clap's generic "to pass '--plot' as a value, use '-- --plot'".
+fn picture_flag_error(cmd: &clap::Command, e: &clap::Error) -> Option<clap::Error> {
+    use clap::error::{ContextKind, ContextValue, ErrorKind};
+    if e.kind() != ErrorKind::UnknownArgument {
+        return None;
+    }
+    let Some(ContextValue::String(arg)) = e.get(ContextKind::InvalidArg) else { return None };
+    let typed = arg.split('=').next().unwrap_or(arg);
+    let other = match typed {
+        "--plot" => "preview",
+        "--preview" => "plot",
+        _ => return None,
+    };
+    // The subcommand the arguments name (nested: `motif bench detect`).
+    let mut path = vec![cmd.get_name().to_string()];
+    let mut sub = cmd;
+    for a in std::env::args().skip(1) {
+        if a.starts_with('-') {
+            continue;
+        }
+        match sub.find_subcommand(&a) {
+            Some(s) => {
+                path.push(a);
+                sub = s;
+            }
+            None => break,
+        }
+    }
+    sub.get_arguments().find(|x| x.get_long() == Some(other))?;
+    let name = path.join(" ");
+    let mut sub = sub.clone().bin_name(&name);
+    Some(sub.error(
+        ErrorKind::UnknownArgument,
+        format!(
+            "unexpected argument '{typed}' found\n\n  tip: `{name}` draws its picture with '--{other} PNG'"
+        ),
+    ))
 }
 
 /// `--threads` beyond this many per core only costs time (thousands of threads take seconds to

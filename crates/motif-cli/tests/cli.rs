@@ -52,6 +52,17 @@ fn usage_errors_exit_2_and_help_exits_0() {
     let o = motif(&["example", "scene-parts", "p.ply", "--parts", "s.obj,"], d.path());
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("empty file name"), "{}", stderr(&o));
+    // The picture option of another command gets a tip naming this command's own.
+    let o = motif(&["retarget", "a.obj", "--steps", "1", "-o", "b.obj", "--plot", "p.png"], d.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("`motif retarget` draws its picture with '--preview PNG'"), "{}", stderr(&o));
+    let o = motif(&["bench", "detect", "--preview=p.png"], d.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("`motif bench detect` draws its picture with '--plot PNG'"),
+        "{}",
+        stderr(&o)
+    );
     assert!(files_in(d.path()).is_empty());
 }
 

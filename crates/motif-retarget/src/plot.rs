@@ -687,6 +687,25 @@ pub struct PreviewText {
     /// Per output triangle, the copy it came from (0: copied in place); the output is coloured
     /// by copy, as thesis Fig. 4.4 c colours voxels by label, so inserted copies and seams show.
     pub output_groups: Option<Vec<u32>>,
+    /// Points drawn over the meshes (the handles of a deformation: where a handle was, where
+    /// it was dragged), so a reader sees what moved without reading the caption.
+    pub marks: Vec<PreviewMark>,
+}
+
+/// A point drawn over one panel of [`plot_retarget_preview`]: a ring at `at` with a label, and
+/// an arrow to it from `from` when given (a handle dragged from its rest position).
+#[derive(Debug, Clone)]
+pub struct PreviewMark {
+    /// 0: the input's panel (left), 1: the output's (right).
+    pub panel: usize,
+    /// Position in model units.
+    pub at: [f64; 3],
+    /// Start of an arrow ending at `at`, in model units.
+    pub from: Option<[f64; 3]>,
+    /// Text beside the ring.
+    pub label: String,
+    /// Colour of the ring, arrow and label (RGB).
+    pub colour: [u8; 3],
 }
 
 /// Colours of the copies in the preview (group 0, copied in place, is the first).
@@ -754,19 +773,22 @@ pub fn plot_retarget_preview(
         -d[2] + 0.6 * v[2] - 0.4 * u[2],
     ])
     .unwrap_or(d.map(|c| -c));
-    for (k, (mesh, ext)) in [(input, ei), (output, eo)].into_iter().enumerate() {
+    // Screen position of a model point in panel k (each panel centred on its own mesh).
+    let panel_px = |k: usize, p: [f64; 3]| {
+        let ext = if k == 0 { ei } else { eo };
+        let (cx, cy) = (0.5 * (ext[0] + ext[1]), 0.5 * (ext[2] + ext[3]));
+        let x0 = (k * panel_w) as f64 + 0.5 * panel_w as f64;
+        let y0 = top as f64 + 0.5 * panel_h as f64;
+        let (x, y, z) = project(p);
+        (x0 + (x - cx) * scale, y0 - (y - cy) * scale, z)
+    };
+    for (k, mesh) in [input, output].into_iter().enumerate() {
         let groups = if k == 1 {
             preview.output_groups.as_deref().filter(|g| g.len() == mesh.triangles.len())
         } else {
             None
         };
-        let (cx, cy) = (0.5 * (ext[0] + ext[1]), 0.5 * (ext[2] + ext[3]));
-        let x0 = (k * panel_w) as f64 + 0.5 * panel_w as f64;
-        let y0 = top as f64 + 0.5 * panel_h as f64;
-        let to_px = |p: [f64; 3]| {
-            let (x, y, z) = project(p);
-            (x0 + (x - cx) * scale, y0 - (y - cy) * scale, z)
-        };
+        let to_px = |p: [f64; 3]| panel_px(k, p);
         for (f, t) in mesh.triangles.iter().enumerate() {
             let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
             let Some(n) = normalize(cross(sub(b, a), sub(c, a))) else { continue };
@@ -874,6 +896,41 @@ pub fn plot_retarget_preview(
             RGBColor(200, 200, 200),
         ))
         .map_err(|e| plot_err(path, e))?;
+        for m in preview.marks.iter().filter(|m| m.panel < 2) {
+            let colour = RGBColor(m.colour[0], m.colour[1], m.colour[2]);
+            let px = |p: [f64; 3]| {
+                let (x, y, _) = panel_px(m.panel, p);
+                (x.round() as i32, y.round() as i32)
+            };
+            let at = px(m.at);
+            if let Some(from) = m.from.map(px).filter(|&f| f != at) {
+                let (dx, dy) = ((at.0 - from.0) as f64, (at.1 - from.1) as f64);
+                let len = dx.hypot(dy);
+                let (ux, uy) = (dx / len, dy / len);
+                let head = |side: f64| {
+                    let (hx, hy) = (-ux * 14.0 - side * uy * 7.0, -uy * 14.0 + side * ux * 7.0);
+                    (at.0 + hx.round() as i32, at.1 + hy.round() as i32)
+                };
+                root.draw(&PathElement::new(vec![from, at], colour.stroke_width(3)))
+                    .map_err(|e| plot_err(path, e))?;
+                root.draw(&Polygon::new(vec![at, head(1.0), head(-1.0)], colour.filled()))
+                    .map_err(|e| plot_err(path, e))?;
+                root.draw(&Circle::new(from, 5, colour.stroke_width(2))).map_err(|e| plot_err(path, e))?;
+            }
+            root.draw(&Circle::new(at, 9, colour.stroke_width(3))).map_err(|e| plot_err(path, e))?;
+            // The label on a white box beside the ring, kept inside its panel.
+            let size = 15;
+            let width = (m.label.chars().count() as i32) * 8 + 8;
+            let lx = (at.0 + 14).min(((m.panel + 1) * panel_w) as i32 - width - 4);
+            let ly = at.1 - 26;
+            root.draw(&Rectangle::new(
+                [(lx - 3, ly - 2), (lx + width, ly + size + 4)],
+                WHITE.mix(0.85).filled(),
+            ))
+            .map_err(|e| plot_err(path, e))?;
+            root.draw(&Text::new(m.label.clone(), (lx, ly), (FONT, size).into_font().color(&colour)))
+                .map_err(|e| plot_err(path, e))?;
+        }
         root.present().map_err(|e| plot_err(path, e))?;
     }
     motif_core::io::write_png_rgb(path, w as u32, h as u32, &rgb).map_err(|e| plot_err(path, e))

@@ -423,6 +423,11 @@ fn deformation(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
         outputs.push(write(&p, &Model::from_mesh(&out))?);
         // The rest shape beside the dragged one, seen from the front at a slant.
         let png = p.with_extension("png");
+        use motif_retarget::plot::PreviewMark;
+        // Where the last frame put the handle.
+        let target =
+            geometry::transform_point(&procedural::translation([0.0, -0.05 * diag, 0.15 * diag]), tip);
+        let (pin, drag) = ([90, 90, 90], [200, 40, 40]);
         let text = motif_retarget::plot::PreviewText {
             title: format!(
                 "windmill: rest (left) and one blade dragged {} (right)",
@@ -432,6 +437,18 @@ fn deformation(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
                     "with --no-symmetry"
                 }
             ),
+            marks: vec![
+                PreviewMark { panel: 0, at: foot, from: None, label: "fixed".into(), colour: pin },
+                PreviewMark { panel: 0, at: tip, from: None, label: "dragged handle".into(), colour: drag },
+                PreviewMark { panel: 1, at: foot, from: None, label: "fixed".into(), colour: pin },
+                PreviewMark {
+                    panel: 1,
+                    at: target,
+                    from: Some(tip),
+                    label: "dragged here".into(),
+                    colour: drag,
+                },
+            ],
             ..Default::default()
         };
         motif_retarget::plot::plot_retarget_preview(

@@ -193,6 +193,19 @@ impl OffsetHistogram {
         (count, mean)
     }
 
+    /// Number of non-empty bins within Chebyshev distance `r` (in bins) of `b`.
+    pub fn window_occupied(&self, b: [i32; 3], r: i32) -> usize {
+        let mut n = 0;
+        for di in -r..=r {
+            for dj in -r..=r {
+                for dk in -r..=r {
+                    n += usize::from(self.lookup([b[0] + di, b[1] + dj, b[2] + dk]).count > 0);
+                }
+            }
+        }
+        n
+    }
+
     /// The non-empty bins, largest count first (ties by index).
     pub fn bins(&self) -> Vec<HistogramBin> {
         let mut v: Vec<HistogramBin> =
@@ -276,6 +289,20 @@ mod tests {
         let raw =
             OffsetHistogram::from_offsets([[0.5, 0.0, 0.0], [-0.5, 0.0, 0.0]], 0.05, SignConvention::Raw);
         assert_eq!(raw.num_bins(), 2);
+    }
+
+    #[test]
+    fn window_occupied_counts_the_non_empty_bins_around_a_bin() {
+        // Offsets on a line along x, one bin in two filled: a window of 3 × 3 × 3 bins around a
+        // filled bin holds it alone; around an empty one, its two filled neighbours.
+        let line: Vec<Point3> = (0..10).map(|i| [0.1 + 0.1 * i as f64, 0.0, 0.0]).collect();
+        let h = OffsetHistogram::from_offsets(line, 0.05, SignConvention::Raw);
+        assert_eq!(h.num_bins(), 10);
+        assert_eq!(h.window_occupied([6, 0, 0], 1), 1);
+        assert_eq!(h.window_occupied([7, 0, 0], 1), 2);
+        assert_eq!(h.window_occupied([6, 0, 0], 2), 3);
+        assert_eq!(h.window_occupied([6, 1, -1], 1), 1);
+        assert_eq!(h.window_occupied([100, 0, 0], 1), 0);
     }
 
     #[test]

@@ -419,8 +419,8 @@ pub struct RepetitionVerdict {
     pub kind: Repetition,
     /// Share of all offsets in the window of the strongest histogram peak (0 without peaks).
     pub top_peak_share: f64,
-    /// Share such a 27-bin window would hold if the offsets were spread evenly over the non-empty
-    /// bins: `min(1, 27 / non-empty bins)`.
+    /// Share that window would hold if the offsets were spread evenly over the non-empty bins:
+    /// the window's non-empty bins over all non-empty bins (0 without peaks).
     pub uniform_share: f64,
     /// `top_peak_share / uniform_share`: about 1 for a flat histogram. Smooth shapes can have a
     /// concentrated histogram too (their best matches sit just beyond τ), so this is evidence,
@@ -787,7 +787,12 @@ fn analyze(
         })
         .collect();
 
-    let uniform_share = (27.0 / hist.num_bins().max(1) as f64).min(1.0);
+    // The flat reference counts the non-empty bins inside the peak's own window: on a model
+    // whose offsets lie along one line (a fence) the window holds 3 of them, not 27, and a
+    // reference of 27 bins called a peak holding 31.5% of the offsets "0.3× flat".
+    let uniform_share = dominant.first().map_or(0.0, |d| {
+        (hist.window_occupied(d.peak.index, 1) as f64 / hist.num_bins().max(1) as f64).min(1.0)
+    });
     let top_peak_share = dominant.first().map_or(0.0, |d| d.peak.support as f64 / total);
     let repetition = verdict(&principal, &dominant, top_peak_share, uniform_share, options);
     let principal_time = t.elapsed().as_secs_f64();
