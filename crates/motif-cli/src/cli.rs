@@ -905,12 +905,13 @@ pub struct RetargetArgs {
     /// still runs for its features and report, but its repetition verdict is not applied.
     #[arg(long, value_name = "X,Y,Z[;X,Y,Z...]", allow_hyphen_values = true)]
     pub offsets: Option<String>,
-    /// Leave the openings of cuts that no copy continues open instead of capping them (caps are
-    /// only added when the input is closed).
+    /// Leave the openings of cuts that no copy continues open instead of capping them (openings
+    /// along the input's own open boundary are never capped).
     #[arg(long)]
     pub no_caps: bool,
     /// Leave the holes still open after capping as they are instead of filling them (slits along
-    /// seams where neighbouring copies differ; holes are only filled when the input is closed)
+    /// seams where neighbouring copies differ; holes along the input's own open boundary are
+    /// never filled)
     #[arg(long)]
     pub no_fill: bool,
     /// When the model has no repetition, scale it to --target-size instead of failing.

@@ -84,6 +84,9 @@ pub struct HoleFillReport {
     /// Boundary edges left open: on loops too long or with no triangulation that keeps the mesh
     /// manifold, and on walks that did not close.
     pub open_edges: usize,
+    /// Loops left open as asked ([`fill_holes_except`]).
+    #[serde(default)]
+    pub kept_open: usize,
 }
 
 /// The triangles [`fill_holes`] appended, and for each the existing triangle next to its loop.
@@ -111,6 +114,17 @@ struct HalfEdge {
 
 /// Fills the holes of `mesh` (module documentation), appending triangles.
 pub fn fill_holes(mesh: &mut TriMesh, options: &HoleFillOptions) -> FilledHoles {
+    fill_holes_except(mesh, options, &|_| false)
+}
+
+/// [`fill_holes`], leaving open every loop with a vertex `keep_open` holds true for (a
+/// retargeted model's loops along the input's own open boundary: a scan's edge stays an edge).
+/// Such loops are counted in [`HoleFillReport::kept_open`], not in `open_edges`.
+pub fn fill_holes_except(
+    mesh: &mut TriMesh,
+    options: &HoleFillOptions,
+    keep_open: &dyn Fn(u32) -> bool,
+) -> FilledHoles {
     let mut out = FilledHoles::default();
     let edges = EdgeTable::new(&mesh.triangles, mesh.positions.len());
     let mut half: Vec<HalfEdge> = single_use(&edges.rows)
@@ -204,6 +218,10 @@ pub fn fill_holes(mesh: &mut TriMesh, options: &HoleFillOptions) -> FilledHoles 
             continue;
         }
         let vertices: Vec<u32> = l.iter().map(|&e| half[e].from).collect();
+        if vertices.iter().any(|&v| keep_open(v)) {
+            out.report.kept_open += 1;
+            continue;
+        }
         let points: Vec<Point3> = vertices.iter().map(|&v| mesh.positions[v as usize]).collect();
         let beside: Vec<Option<Point3>> = l.iter().map(|&e| normal_of(mesh, half[e].face)).collect();
         let allowed = |i: usize, k: usize| {
@@ -618,7 +636,10 @@ mod tests {
         let mut m = full.clone();
         m.triangles.drain(2..4); // the +z face
         let f = fill_holes(&mut m, &HoleFillOptions::default());
-        assert_eq!(f.report, HoleFillReport { loops: 1, filled: 1, triangles: 2, open_edges: 0 });
+        assert_eq!(
+            f.report,
+            HoleFillReport { loops: 1, filled: 1, triangles: 2, open_edges: 0, kept_open: 0 }
+        );
         assert_eq!(f.neighbour.len(), 2);
         assert_closed_and_oriented(&m);
         assert!((m.area() - full.area()).abs() < 1e-12);
@@ -653,7 +674,10 @@ mod tests {
         let open_area = m.area();
         assert!(open_area < 6.0);
         let f = fill_holes(&mut m, &HoleFillOptions::default());
-        assert_eq!(f.report, HoleFillReport { loops: 1, filled: 1, triangles: 2, open_edges: 0 });
+        assert_eq!(
+            f.report,
+            HoleFillReport { loops: 1, filled: 1, triangles: 2, open_edges: 0, kept_open: 0 }
+        );
         assert_closed_and_oriented(&m);
         assert!((m.area() - 6.0).abs() < 1e-12, "area {}", m.area());
         assert!((m.signed_volume() - 1.0).abs() < 1e-12);
@@ -671,7 +695,10 @@ mod tests {
             m.positions.push([0.5, -0.5, -0.5]);
             m.triangles.push(fin);
             let f = fill_holes(&mut m, &HoleFillOptions::default());
-            assert_eq!(f.report, HoleFillReport { loops: 1, filled: 1, triangles: 1, open_edges: 0 });
+            assert_eq!(
+                f.report,
+                HoleFillReport { loops: 1, filled: 1, triangles: 1, open_edges: 0, kept_open: 0 }
+            );
             let back = [fin[1], fin[0], fin[2]];
             let added = m.triangles[13];
             assert!((0..3).any(|r| [0, 1, 2].map(|k| back[(k + r) % 3]) == added), "{fin:?}: {added:?}");
@@ -704,7 +731,10 @@ mod tests {
             let n = mesh.triangles.len();
             mesh.triangles.push(flap);
             let f = fill_holes(&mut mesh, &HoleFillOptions::default());
-            assert_eq!(f.report, HoleFillReport { loops: 1, filled: 1, triangles: 1, open_edges: 0 });
+            assert_eq!(
+                f.report,
+                HoleFillReport { loops: 1, filled: 1, triangles: 1, open_edges: 0, kept_open: 0 }
+            );
             let back = [flap[2], flap[1], flap[0]];
             let added = mesh.triangles[n + 1];
             assert!((0..3).any(|r| [0, 1, 2].map(|k| back[(k + r) % 3]) == added), "{flap:?}: {added:?}");
@@ -718,8 +748,30 @@ mod tests {
         let mut m = cube();
         m.triangles.drain(2..4);
         let f = fill_holes(&mut m, &HoleFillOptions { max_loop_vertices: 3 });
-        assert_eq!(f.report, HoleFillReport { loops: 1, filled: 0, triangles: 0, open_edges: 4 });
+        assert_eq!(
+            f.report,
+            HoleFillReport { loops: 1, filled: 0, triangles: 0, open_edges: 4, kept_open: 0 }
+        );
         assert_eq!(m.triangles.len(), 10);
+    }
+
+    #[test]
+    fn loops_through_a_kept_vertex_stay_open() {
+        // Two holes in a cube: the one through a kept vertex stays open, the other is filled.
+        let mut m = cube();
+        let first = m.triangles[0];
+        m.triangles.drain(2..4);
+        m.triangles.remove(0);
+        let stats = m.edge_stats();
+        assert!(stats.boundary > 0);
+        let keep = first[0];
+        let f = fill_holes_except(&mut m, &HoleFillOptions::default(), &|v| v == keep);
+        assert_eq!(f.report.kept_open, 1, "{:?}", f.report);
+        assert_eq!(f.report.filled, f.report.loops - 1, "{:?}", f.report);
+        assert!(m.edge_stats().boundary >= 3);
+        let mut again = m.clone();
+        fill_holes(&mut again, &HoleFillOptions::default());
+        assert_eq!(again.edge_stats().boundary, 0, "without the kept vertex the cube closes");
     }
 
     #[test]

@@ -962,6 +962,76 @@ fn caps_and_fills_close_the_openings_of_real_models() {
 
 /// A bar 10⁴ long and 1 thick grown along a cell of 2500: seams are welded within a thousandth
 /// of a cell (2.5) but never across the bar's cross-section, whose corners are 1 apart.
+/// An open part does not turn capping off for the closed parts beside it: the CGAL cheese (whose
+/// growth needs caps) with a single-sided sheet hovering over it comes out with the cheese's
+/// copies closed, the sheet's copies open along their rims only, and no edge misoriented. (Before,
+/// any open edge in the input left every opening open: the Kiva shelf pod, 2 of its 64 parts open,
+/// kept 165 open edges grown by two levels.)
+#[test]
+fn openings_of_an_open_part_stay_open_while_closed_parts_are_capped() {
+    let Some(dir) = shared_data() else {
+        return;
+    };
+    use motif_retarget::offsets::{OffsetOptions, analyze_offsets};
+    let cheese = motif_core::io::read_mesh(&dir.join("man-made/cgal_cheese.off")).expect("mesh loads");
+    let a = analyze_offsets(&cheese, &OffsetOptions { seed: 1, ..Default::default() }, &NoProgress)
+        .expect("offsets");
+    let principal = orient_offsets(&a.principal.iter().map(|p| p.offset_model).collect::<Vec<_>>());
+    let b = cheese.aabb().expect("non-empty");
+    // A sheet over the cheese's top, 8 × 8 squares, facing up, at a height no voxel face holds.
+    let z = b.max[2] + 0.013 * b.diagonal();
+    let n = 8usize;
+    let mut mesh = cheese.clone();
+    let base = mesh.positions.len() as u32;
+    for j in 0..=n {
+        for i in 0..=n {
+            let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
+            mesh.positions.push([
+                b.min[0] + u * (b.max[0] - b.min[0]),
+                b.min[1] + v * (b.max[1] - b.min[1]),
+                z,
+            ]);
+        }
+    }
+    let at = |i: usize, j: usize| base + (j * (n + 1) + i) as u32;
+    for j in 0..n {
+        for i in 0..n {
+            mesh.triangles.push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
+            mesh.triangles.push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+        }
+    }
+    let input = mesh.edge_stats();
+    assert_eq!((input.boundary, input.misoriented), (4 * n, 0), "only the sheet's rim is open");
+    let options = RetargetOptions { seed: 1, ..Default::default() };
+    for steps in [[1, 0, 0], [1, 1, 0]] {
+        let out = retarget(&mesh, &principal, steps, &options, &NoProgress).expect("retarget");
+        // The sheet's copies lie at its height shifted by the copies' translations.
+        let mut heights = vec![z];
+        for (p, &k) in principal.iter().zip(&steps) {
+            heights = heights.iter().flat_map(|&h| (0..=k).map(move |m| h + m as f64 * p[2])).collect();
+        }
+        let on_sheet = |v: u32| {
+            heights.iter().any(|&h| (out.mesh.positions[v as usize][2] - h).abs() < 1e-9 * b.diagonal())
+        };
+        let keys = motif_core::mesh::edges_by_key(&out.mesh.triangles, out.mesh.positions.len());
+        let mut rim = 0;
+        for &(_, f, k) in motif_core::mesh::single_use(&keys) {
+            let t = out.mesh.triangles[f as usize];
+            let (p, q) = (t[k as usize], t[(k as usize + 1) % 3]);
+            assert!(
+                on_sheet(p) && on_sheet(q),
+                "{steps:?}: an open edge off the sheet, at {:?}",
+                out.mesh.positions[p as usize]
+            );
+            rim += 1;
+        }
+        assert!(rim >= 4 * n, "{steps:?}: the sheet's rim stays open ({rim} edges)");
+        assert!(out.report.capped_loops > 0, "{steps:?}: the cheese's openings were capped");
+        assert!(out.report.kept_open > 0, "{steps:?}: the sheet's openings were kept");
+        assert_eq!(out.mesh.edge_stats().misoriented, 0, "{steps:?}: misoriented edges");
+    }
+}
+
 #[test]
 fn a_long_thin_bar_keeps_its_cross_section() {
     let bar = box_mesh([0.0; 3], [1e4, 1.0, 1.0], [1, 1, 1]).unwrap();

@@ -550,9 +550,14 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             );
         }
         if r.capped_loops + r.filled_holes + r.output_boundary_edges > 0 {
+            let kept = if r.kept_open > 0 {
+                format!("; {} openings along the input's own open boundary kept open", r.kept_open)
+            } else {
+                String::new()
+            };
             println!(
                 "closing: {} openings capped ({} triangles), {} holes filled ({} triangles), {} boundary edges \
-                 left (input {})",
+                 left (input {}){kept}",
                 r.capped_loops,
                 r.cap_triangles,
                 r.filled_holes,

@@ -20,8 +20,8 @@
 //!    by `Σ kᵢ vᵢ` — by minimising eq. 4.3 with alpha-expansion ([`mod@crate::alpha_expansion`]).
 //! 5. **Stitch** the copies' triangles and weld the seams; where no copy continues a part cut at
 //!    a voxel face, cap the opening (`caps`), and fill the holes still open, slits where two
-//!    neighbouring copies differ ([`motif_core::hole_fill`]); both only when the input is closed,
-//!    and neither in the thesis. The result is in model units.
+//!    neighbouring copies differ ([`motif_core::hole_fill`]); neither touches an opening the
+//!    input has itself, and neither is in the thesis. The result is in model units.
 //!
 //! [`RetargetSession`] does steps 1–3 once and solves for any number of step vectors
 //! (interactive resizing; Hausdorff distances are cached across solves); [`retarget`] and
@@ -203,10 +203,11 @@ pub struct RetargetOptions {
     /// stand-in for +∞ inside moves).
     pub graph_cut: AlphaExpansionOptions,
     /// Cap the openings that cuts at voxel faces leave where no copy continues them (seams of
-    /// infinite cost), when the input is closed (see the `caps` module). Not in the thesis; default
-    /// true.
+    /// infinite cost), except openings that touch the input's own open boundary (see the `caps`
+    /// module). Not in the thesis; default true.
     pub cap_openings: bool,
-    /// Fill the holes still open after welding and capping, when the input is closed: slits along
+    /// Fill the holes still open after welding and capping, except those that touch the input's
+    /// own open boundary (a scan's edge, a single-sided sheet stays as it was): slits along
     /// seams where two neighbouring copies' geometry differs, which no copy continues and no
     /// voxel face plane holds ([`motif_core::hole_fill`]: Liepa's triangulation of each boundary
     /// loop, no new vertices). Not in the thesis; default true.
@@ -411,6 +412,10 @@ pub struct RetargetReport {
     /// rest of the surface ([`motif_core::TriMesh::orient_patches`]).
     #[serde(default)]
     pub reoriented_triangles: usize,
+    /// Openings left open because they run along the input's own open boundary (loops through
+    /// a vertex copied from it, as the last of capping and filling saw them).
+    #[serde(default)]
+    pub kept_open: usize,
     /// `normalised_from_model`, row-major 4×4.
     pub normalised_from_model: Mat4,
     /// `canonical_from_normalised`, row-major 3×3 (identity for the dense baseline).
@@ -448,12 +453,13 @@ pub struct RetargetSession {
     cache: DistanceCache,
     precompute: StageTimings,
     precompute_ms: f64,
-    /// Whether to cap openings: asked for ([`RetargetOptions::cap_openings`]) and the input has no
-    /// open boundary edge.
+    /// Whether to cap openings ([`RetargetOptions::cap_openings`]; openings that touch the
+    /// input's own open boundary are left open).
     cap_openings: bool,
-    /// Whether to fill holes: asked for ([`RetargetOptions::fill_holes`]) and the input has no
-    /// open boundary edge.
+    /// Whether to fill holes ([`RetargetOptions::fill_holes`]; likewise).
     fill_holes: bool,
+    /// The cut mesh's open boundary and orientation (openings the input has stay open).
+    input_surface: stitch::InputSurface,
 }
 
 impl RetargetSession {
@@ -518,8 +524,7 @@ impl RetargetSession {
         } else {
             mesh
         };
-        let closed = stitch::mesh_stats(mesh).1 == 0;
-        let (cap_openings, fill_holes) = (options.cap_openings && closed, options.fill_holes && closed);
+        let (cap_openings, fill_holes) = (options.cap_openings, options.fill_holes);
         progress.start("voxelize", 0);
         let normalisation = canonical::normalisation_of(mesh)?;
         if let Some(f) = features {
@@ -559,6 +564,7 @@ impl RetargetSession {
         };
         let pieces = stitch::Pieces::new(parent, original);
         let tri_voxel = voxels::assign_triangles(&mesh, &lattice, &grid);
+        let input_surface = stitch::InputSurface::of(&mesh);
         progress.finish();
         let voxelize_ms = t0.elapsed().as_secs_f64() * 1e3;
 
@@ -606,6 +612,7 @@ impl RetargetSession {
             cache: DistanceCache::default(),
             precompute: StageTimings { voxelize_ms, sampling_ms, descriptors_ms, ..Default::default() },
             precompute_ms: t0.elapsed().as_secs_f64() * 1e3,
+            input_surface,
             cap_openings,
             fill_holes,
         })
@@ -741,6 +748,7 @@ impl RetargetSession {
             weld_tolerance,
             self.cap_openings,
             self.fill_holes,
+            &self.input_surface,
         );
         let stitch_ms = t_stitch.elapsed().as_secs_f64() * 1e3;
         progress.finish();
@@ -794,6 +802,8 @@ impl RetargetSession {
             flat_sheets: stitched.capped.flat_sheets,
             winding_cap_planes: stitched.capped.winding_planes,
             filled_holes: stitched.filled.filled,
+            // The fill sees again what capping kept open: the later count, not the sum.
+            kept_open: if self.fill_holes { stitched.filled.kept_open } else { stitched.capped.kept_open },
             fill_triangles: stitched.filled.triangles,
             reoriented_triangles: stitched.reoriented,
             normalised_from_model: canonical::normalised_from_model(&self.lattice.normalisation),

@@ -19,7 +19,7 @@ use foldhash::fast::FixedState;
 
 use earcut::Earcut;
 use motif_core::geometry::{Point3, add, cross, dist2, dot, scale, sub};
-use motif_core::hole_fill::{HoleFillOptions, HoleFillReport, fill_holes};
+use motif_core::hole_fill::{HoleFillOptions, HoleFillReport, fill_holes_except};
 use motif_core::mesh::{TriMesh, UnionFind, edges_by_key, single_use};
 
 use super::canonical::Lattice;
@@ -86,6 +86,32 @@ fn group_by(keys: &[u32], n: usize) -> (Vec<u32>, Vec<u32>) {
     (start, list)
 }
 
+/// What stitching needs to know of the input's surface (the cut mesh of the session).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct InputSurface {
+    /// Per vertex: on an edge used by one triangle only (the input's own open boundary). Empty
+    /// when the input has none.
+    pub boundary: Vec<bool>,
+    /// No edge is used twice the same way: the output's orientation may then be repaired.
+    pub consistent: bool,
+}
+
+impl InputSurface {
+    pub(crate) fn of(mesh: &TriMesh) -> InputSurface {
+        let keys = edges_by_key(&mesh.triangles, mesh.positions.len());
+        let mut boundary = Vec::new();
+        for &(_, f, k) in single_use(&keys) {
+            if boundary.is_empty() {
+                boundary = vec![false; mesh.positions.len()];
+            }
+            let t = mesh.triangles[f as usize];
+            boundary[t[k as usize] as usize] = true;
+            boundary[t[(k as usize + 1) % 3] as usize] = true;
+        }
+        InputSurface { boundary, consistent: mesh.edge_stats().misoriented == 0 }
+    }
+}
+
 /// Assembles the output mesh. `labels` has one step vector per output voxel of the grid with
 /// `out_dims` voxels; `weld_tolerance` is in model units; with `cap`, the openings left on voxel
 /// faces are capped ([`super::caps`]); with `fill_open`, the holes still open after that are filled
@@ -113,7 +139,9 @@ pub(crate) fn stitch(
     weld_tolerance: f64,
     cap: bool,
     fill_open: bool,
+    input: &InputSurface,
 ) -> Stitched {
+    let input_boundary = &input.boundary;
     // Triangles per input voxel (CSR, triangle order kept).
     let (start, by_voxel) = group_by(tri_voxel, grid_in.len());
     // Input voxels touched by each vertex's triangles (sorted, unique), as CSR rows: a counting
@@ -296,16 +324,27 @@ pub(crate) fn stitch(
             kept_voxels.push(x);
         }
     }
+    // Output vertices copied from a vertex on the input's own open boundary: openings through
+    // them are the input's and are neither capped nor filled.
+    let mut keep_open = vec![false; new_positions.len()];
+    if !input_boundary.is_empty() {
+        for (i, &(v, _)) in origin_of.iter().enumerate() {
+            if input_boundary[v as usize] {
+                keep_open[remap[i] as usize] = true;
+            }
+        }
+    }
     let mut mesh = TriMesh { positions: new_positions, triangles: kept };
     let mut triangle_voxels = kept_voxels;
     let open = weld_tolerance <= 0.0 || split_t_junctions(&mut mesh, &mut triangle_voxels, weld_tolerance);
     let capped = if cap && open {
-        cap_openings(&mut mesh, &mut triangle_voxels, grid_in, out_dims, lattice, weld_tolerance)
+        cap_openings(&mut mesh, &mut triangle_voxels, grid_in, out_dims, lattice, weld_tolerance, &keep_open)
     } else {
         Capped::default()
     };
     let filled = if fill_open && open {
-        let f = fill_holes(&mut mesh, &HoleFillOptions::default());
+        let kept = |v: u32| keep_open.get(v as usize).copied().unwrap_or(false);
+        let f = fill_holes_except(&mut mesh, &HoleFillOptions::default(), &kept);
         for &t in &f.neighbour {
             triangle_voxels.push(triangle_voxels[t as usize]);
         }
@@ -316,9 +355,9 @@ pub(crate) fn stitch(
     // A cap laid over a sliver of two copies' crossing sections can come out turned the wrong
     // way as a whole patch, which the per-edge checks of capping cannot see (the CGAL cheese
     // turned by 47° about (0.3, −0.7, 0.5) and grown by +1 had 11 cap triangles inside out, 13
-    // edges used twice the same way). The input was closed and consistent, so the output is made
+    // edges used twice the same way). Where the input is consistent, the output is made
     // consistent too, turning back the smaller side of each disagreement.
-    let reoriented = if (cap || fill_open) && open && mesh.edge_stats().misoriented > 0 {
+    let reoriented = if (cap || fill_open) && open && input.consistent && mesh.edge_stats().misoriented > 0 {
         mesh.orient_patches()
     } else {
         0
