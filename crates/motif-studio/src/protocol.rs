@@ -364,6 +364,10 @@ pub enum ServerMessage {
         triangles: usize,
         /// Solve time, ms.
         ms: f64,
+        /// Set when no seam-consistent stitching was found (seams of infinite cost): what is
+        /// wrong and how many edges the result leaves open.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        warning: Option<String>,
     },
     /// Detections to show.
     Detections {

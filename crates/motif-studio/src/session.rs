@@ -82,6 +82,8 @@ struct RetargetState {
     session: RetargetSession,
     principal: Vec<Point3>,
     last: Option<TriMesh>,
+    /// Open edges of the input, beside which the output's are reported.
+    input_boundary: usize,
 }
 
 /// Counts live sessions; a session decrements it when it is dropped.
@@ -803,7 +805,9 @@ pub fn offsets(shared: &Shared, p: &JobProgress) -> Result<Vec<Out>> {
     let session = RetargetSession::with_features(mesh, &features, &principal, &options, p)?;
     let cells = cells_along(mesh, &principal);
     p.check();
-    lock(shared).retarget = Some(RetargetState { session, principal: principal.clone(), last: None });
+    let input_boundary = mesh.edge_stats().boundary;
+    lock(shared).retarget =
+        Some(RetargetState { session, principal: principal.clone(), last: None, input_boundary });
     Ok(vec![Out::Text(ServerMessage::Offsets { principal, cells, summary, ms: ms_since(t) })])
 }
 
@@ -822,6 +826,16 @@ pub fn retarget(shared: &Shared, seq: u32, steps: [i32; 3]) -> Result<Vec<Out>> 
     let ms = ms_since(t);
     let cells = cells_along(&res.mesh, &r.principal);
     let total_cells = cells.iter().product();
+    // A stitching with seams of infinite cost must not look like a success (the CLI says the
+    // same on stderr, and its --preview in red).
+    let rep = &res.report;
+    let warning = (rep.infinite_seams > 0).then(|| {
+        format!(
+            "no seam-consistent stitching for these steps: at {} of {} seams one copy meets empty space in \
+             another; the result has {} open edges (the input {})",
+            rep.infinite_seams, rep.seams, rep.output_boundary_edges, r.input_boundary
+        )
+    });
     let out = vec![
         Out::Text(ServerMessage::Retargeted {
             seq,
@@ -831,6 +845,7 @@ pub fn retarget(shared: &Shared, seq: u32, steps: [i32; 3]) -> Result<Vec<Out>> 
             vertices: res.mesh.num_vertices(),
             triangles: res.mesh.num_triangles(),
             ms,
+            warning,
         }),
         Out::Binary(encode_binary(
             BinaryKind::Retargeted,

@@ -409,6 +409,37 @@ async fn long_computations_cancel_and_disconnects_free_sessions() {
     wait_for_sessions(&s.sessions, 0).await;
 }
 
+/// A resize with seams of infinite cost says so: the gridbeam shelf of the shared data is two
+/// cells wide, so growing it in width puts a copy's geometry against empty space at every seam.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_resize_that_cannot_stitch_cleanly_warns() {
+    let Some(data) = motif_core::data::shared_data_dir(std::path::Path::new(env!("CARGO_MANIFEST_DIR")))
+    else {
+        println!("skipping: no shared data found (set MOTIF_DATA)");
+        return;
+    };
+    let s = start().await;
+    std::fs::copy(data.join("man-made/mcad_gridbeam_shelf.stl"), s.root.join("gridbeam.stl")).unwrap();
+    let mut ws = connect(&s.url).await;
+    send(&mut ws, json!({"type": "open", "path": "gridbeam.stl"})).await;
+    assert!(matches!(next_text(&mut ws).await, ServerMessage::Model { .. }));
+    assert!(matches!(next(&mut ws).await, Reply::Binary(_)));
+    send(&mut ws, json!({"type": "offsets"})).await;
+    match next_text(&mut ws).await {
+        ServerMessage::Offsets { principal, .. } => assert_eq!(principal.len(), 3),
+        other => panic!("expected offsets, got {other:?}"),
+    }
+    send(&mut ws, json!({"type": "retarget", "seq": 1, "steps": [1, 1, 0]})).await;
+    match next_text(&mut ws).await {
+        ServerMessage::Retargeted { warning, .. } => {
+            let w = warning.expect("a warning");
+            assert!(w.contains("no seam-consistent stitching") && w.contains("open edges"), "{w}");
+        }
+        other => panic!("expected retargeted, got {other:?}"),
+    }
+    assert!(matches!(next(&mut ws).await, Reply::Binary(_)));
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn shelf_grows_by_one_cell_and_exports() {
     let s = start().await;
@@ -424,9 +455,10 @@ async fn shelf_grows_by_one_cell_and_exports() {
     }
     send(&mut ws, json!({"type": "retarget", "seq": 1, "steps": [1, 0, 0]})).await;
     match next_text(&mut ws).await {
-        ServerMessage::Retargeted { cells, total_cells, .. } => {
+        ServerMessage::Retargeted { cells, total_cells, warning, .. } => {
             assert_eq!(cells, vec![5, 3]);
             assert_eq!(total_cells, 15);
+            assert_eq!(warning, None, "the shelf stitches cleanly");
         }
         other => panic!("expected retargeted, got {other:?}"),
     }

@@ -234,7 +234,7 @@ function onModel(m) {
   handles = []; undoStack = []; redoStack = []; updateUndo();
   inFlight = wantFrame = handlesPending = undoOnHandles = releaseWanted = false; sentAt.clear();
   clearGroup(overlays.detections); clearGroup(overlays.offsets); clearGroup(overlays.symmetry); clearGroup(overlays.handles);
-  $('steps').replaceChildren(); $('resize-info').textContent = ''; $('detections-info').textContent = ''; $('deform-info').textContent = '';
+  $('steps').replaceChildren(); $('resize-info').textContent = ''; $('resize-warning').hidden = true; $('detections-info').textContent = ''; $('deform-info').textContent = '';
   $('symmetry-info').textContent = '';
   if (retargetObject) { scene.remove(retargetObject); retargetObject.geometry.dispose(); retargetObject = null; }
   gizmo.detach();
@@ -821,6 +821,7 @@ function onOffsets(m) {
     steps.append(row);
   });
   m.principal.forEach((_, k) => { $(`step-${k}`).oninput = () => { $(`step-${k}-value`).textContent = $(`step-${k}`).value; sendRetarget(); }; });
+  $('resize-warning').hidden = true;
   $('resize-info').textContent = `${m.principal.length} principal offset(s); cells ${m.cells.join(' × ')}; ${m.ms.toFixed(0)} ms\n${m.summary}`;
   requestRender();
 }
@@ -846,6 +847,9 @@ function onRetargetedMesh(pos, index, m) {
   state.cells = m.cells; state.totalCells = m.total_cells; state.retargetVertices = m.vertices; state.retargetVersion++;
   shownSteps = m.steps.slice();
   $('resize-info').textContent = `steps ${m.steps.join(', ')}: cells ${m.cells.join(' × ')} = ${m.total_cells}\n${m.vertices} vertices, ${m.triangles} triangles, ${m.ms.toFixed(0)} ms`;
+  // Seams of infinite cost: the result is open there, and must not look like a success.
+  $('resize-warning').textContent = m.warning || '';
+  $('resize-warning').hidden = !m.warning;
   requestRender();
 }
 $('show-original').onchange = () => { if (object) object.visible = $('show-original').checked || !retargetObject; requestRender(); };
