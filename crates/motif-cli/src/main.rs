@@ -70,17 +70,14 @@ fn picture_flag_error(cmd: &clap::Command, e: &clap::Error) -> Option<clap::Erro
     };
     // The subcommand the arguments name (nested: `motif bench detect`).
     let mut path = vec![cmd.get_name().to_string()];
+    // (Words that name no subcommand, such as option values and files, are passed over; an
+    // argument that is not UTF-8 cannot name one.)
     let mut sub = cmd;
-    for a in std::env::args().skip(1) {
-        if a.starts_with('-') {
-            continue;
-        }
-        match sub.find_subcommand(&a) {
-            Some(s) => {
-                path.push(a);
-                sub = s;
-            }
-            None => break,
+    for a in std::env::args_os().skip(1) {
+        let Some(a) = a.to_str().filter(|a| !a.starts_with('-')) else { continue };
+        if let Some(s) = sub.find_subcommand(a) {
+            path.push(a.to_string());
+            sub = s;
         }
     }
     sub.get_arguments().find(|x| x.get_long() == Some(other))?;

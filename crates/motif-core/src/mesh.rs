@@ -183,15 +183,29 @@ impl TriMesh {
     /// Counts distinct edges, boundary edges (one triangle), non-manifold edges (three or more)
     /// and misoriented edges (see [`EdgeStats::misoriented`]).
     pub fn edge_stats(&self) -> EdgeStats {
+        self.edge_stats_and_boundary().0
+    }
+
+    /// [`TriMesh::edge_stats`], and per vertex whether it lies on a boundary edge (empty when
+    /// there is none), from one pass over the edge table.
+    pub fn edge_stats_and_boundary(&self) -> (EdgeStats, Vec<bool>) {
         let keys = edges_by_key(&self.triangles, self.positions.len());
         let mut stats = EdgeStats { edges: 0, boundary: 0, non_manifold: 0, misoriented: 0 };
+        let mut on_boundary = Vec::new();
         for run in keys.chunk_by(|a, b| a.0 == b.0) {
             let (low, high) = ((run[0].0 >> 32) as u32, run[0].0 as u32);
             if low == high {
                 continue; // a degenerate side is no edge
             }
             stats.edges += 1;
-            stats.boundary += usize::from(run.len() == 1);
+            if run.len() == 1 {
+                stats.boundary += 1;
+                if on_boundary.is_empty() {
+                    on_boundary = vec![false; self.positions.len()];
+                }
+                on_boundary[low as usize] = true;
+                on_boundary[high as usize] = true;
+            }
             stats.non_manifold += usize::from(run.len() >= 3);
             // Triangles running low → high minus those running high → low.
             let net: i64 = run
@@ -200,7 +214,7 @@ impl TriMesh {
                 .sum();
             stats.misoriented += usize::from(net.abs() >= 2);
         }
-        stats
+        (stats, on_boundary)
     }
 
     /// Flips the patches of triangles that run against the rest of their surface, so that every
@@ -568,6 +582,22 @@ mod tests {
             vec![[0, 1, 2], [0, 4, 3]],
         )
         .unwrap()
+    }
+
+    #[test]
+    fn boundary_vertices_are_those_of_edges_used_once() {
+        let cube = crate::procedural::box_mesh([0.0; 3], [1.0, 1.0, 1.0], [1, 1, 1]).unwrap();
+        let (stats, on) = cube.edge_stats_and_boundary();
+        assert_eq!((stats.boundary, on.len()), (0, 0), "closed: no per-vertex table");
+        let mut open = cube.clone();
+        let gone = open.triangles.remove(0);
+        let (stats, on) = open.edge_stats_and_boundary();
+        assert_eq!(stats, open.edge_stats());
+        assert_eq!(stats.boundary, 3);
+        let marked: Vec<u32> = (0..on.len() as u32).filter(|&v| on[v as usize]).collect();
+        let mut expected = gone.to_vec();
+        expected.sort_unstable();
+        assert_eq!(marked, expected);
     }
 
     #[test]

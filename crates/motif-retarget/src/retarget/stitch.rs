@@ -98,33 +98,8 @@ pub(crate) struct InputSurface {
 
 impl InputSurface {
     pub(crate) fn of(mesh: &TriMesh) -> InputSurface {
-        // One pass over the edge table: edges of one use are the boundary; an edge that more
-        // triangles run one way than the other, by two or more, is misoriented (as in
-        // `TriMesh::edge_stats`).
-        let keys = edges_by_key(&mesh.triangles, mesh.positions.len());
-        let mut boundary = Vec::new();
-        let mut consistent = true;
-        for run in keys.chunk_by(|a, b| a.0 == b.0) {
-            let low = (run[0].0 >> 32) as u32;
-            if low == run[0].0 as u32 {
-                continue;
-            }
-            if let [(_, f, k)] = run {
-                if boundary.is_empty() {
-                    boundary = vec![false; mesh.positions.len()];
-                }
-                let t = mesh.triangles[*f as usize];
-                boundary[t[*k as usize] as usize] = true;
-                boundary[t[(*k as usize + 1) % 3] as usize] = true;
-            } else if consistent {
-                let net: i64 = run
-                    .iter()
-                    .map(|&(_, f, k)| if mesh.triangles[f as usize][k as usize] == low { 1 } else { -1 })
-                    .sum();
-                consistent = net.abs() < 2;
-            }
-        }
-        InputSurface { boundary, consistent }
+        let (stats, boundary) = mesh.edge_stats_and_boundary();
+        InputSurface { boundary, consistent: stats.misoriented == 0 }
     }
 }
 
