@@ -54,8 +54,9 @@ fn parse_arguments() -> cli::Cli {
 }
 
 /// `motif retarget` draws its picture with `--preview`, every other command with `--plot`: an
-/// unknown `--plot` (or `--preview`) on a command that has the other gets a tip naming it, instead
-/// of clap's generic "to pass '--plot' as a value, use '-- --plot'".
+/// unknown `--plot` (or `--preview`) on a command that has the other gets a tip naming it, and on
+/// a command that draws nothing a tip saying so, instead of clap's generic "to pass '--plot' as a
+/// value, use '-- --plot'".
 fn picture_flag_error(cmd: &clap::Command, e: &clap::Error) -> Option<clap::Error> {
     use clap::error::{ContextKind, ContextValue, ErrorKind};
     if e.kind() != ErrorKind::UnknownArgument {
@@ -80,15 +81,19 @@ fn picture_flag_error(cmd: &clap::Command, e: &clap::Error) -> Option<clap::Erro
             sub = s;
         }
     }
-    sub.get_arguments().find(|x| x.get_long() == Some(other))?;
+    if path.len() < 2 || sub.has_subcommands() {
+        return None;
+    }
     let name = path.join(" ");
+    let tip = if sub.get_arguments().any(|x| x.get_long() == Some(other)) {
+        format!("`{name}` draws its picture with '--{other} PNG'")
+    } else {
+        format!("`{name}` draws no picture")
+    };
     let mut sub = sub.clone().bin_name(&name);
-    Some(sub.error(
-        ErrorKind::UnknownArgument,
-        format!(
-            "unexpected argument '{typed}' found\n\n  tip: `{name}` draws its picture with '--{other} PNG'"
-        ),
-    ))
+    Some(
+        sub.error(ErrorKind::UnknownArgument, format!("unexpected argument '{typed}' found\n\n  tip: {tip}")),
+    )
 }
 
 /// `--threads` beyond this many per core only costs time (thousands of threads take seconds to

@@ -63,6 +63,9 @@ fn usage_errors_exit_2_and_help_exits_0() {
         "{}",
         stderr(&o)
     );
+    let o = motif(&["info", "a.obj", "--plot", "p.png"], d.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("`motif info` draws no picture"), "{}", stderr(&o));
     assert!(files_in(d.path()).is_empty());
 }
 

@@ -114,16 +114,16 @@ struct HalfEdge {
 
 /// Fills the holes of `mesh` (module documentation), appending triangles.
 pub fn fill_holes(mesh: &mut TriMesh, options: &HoleFillOptions) -> FilledHoles {
-    fill_holes_except(mesh, options, &|_| false)
+    fill_holes_except(mesh, options, &|_, _| false)
 }
 
-/// [`fill_holes`], leaving open every loop with a vertex `keep_open` holds true for (a
+/// [`fill_holes`], leaving open every loop with an edge `keep_open(a, b)` holds true for (a
 /// retargeted model's loops along the input's own open boundary: a scan's edge stays an edge).
 /// Such loops are counted in [`HoleFillReport::kept_open`], not in `open_edges`.
 pub fn fill_holes_except(
     mesh: &mut TriMesh,
     options: &HoleFillOptions,
-    keep_open: &dyn Fn(u32) -> bool,
+    keep_open: &dyn Fn(u32, u32) -> bool,
 ) -> FilledHoles {
     let mut out = FilledHoles::default();
     let edges = EdgeTable::new(&mesh.triangles, mesh.positions.len());
@@ -213,15 +213,15 @@ pub fn fill_holes_except(
     let mut triangles: Vec<[u32; 3]> = Vec::new();
     for l in loops {
         let n = l.len();
+        if l.iter().any(|&e| keep_open(half[e].from, half[e].to)) {
+            out.report.kept_open += 1;
+            continue;
+        }
         if n > options.max_loop_vertices {
             out.report.open_edges += n;
             continue;
         }
         let vertices: Vec<u32> = l.iter().map(|&e| half[e].from).collect();
-        if vertices.iter().any(|&v| keep_open(v)) {
-            out.report.kept_open += 1;
-            continue;
-        }
         let points: Vec<Point3> = vertices.iter().map(|&v| mesh.positions[v as usize]).collect();
         let beside: Vec<Option<Point3>> = l.iter().map(|&e| normal_of(mesh, half[e].face)).collect();
         let allowed = |i: usize, k: usize| {
@@ -756,22 +756,23 @@ mod tests {
     }
 
     #[test]
-    fn loops_through_a_kept_vertex_stay_open() {
-        // Two holes in a cube: the one through a kept vertex stays open, the other is filled.
+    fn loops_along_a_kept_edge_stay_open() {
+        // Two holes in a cube: the one along a kept edge stays open, the other is filled.
         let mut m = cube();
         let first = m.triangles[0];
         m.triangles.drain(2..4);
         m.triangles.remove(0);
         let stats = m.edge_stats();
         assert!(stats.boundary > 0);
-        let keep = first[0];
-        let f = fill_holes_except(&mut m, &HoleFillOptions::default(), &|v| v == keep);
+        let (a, b) = (first[0], first[1]);
+        let edge = |u: u32, v: u32| (u, v) == (a, b) || (u, v) == (b, a);
+        let f = fill_holes_except(&mut m, &HoleFillOptions::default(), &edge);
         assert_eq!(f.report.kept_open, 1, "{:?}", f.report);
         assert_eq!(f.report.filled, f.report.loops - 1, "{:?}", f.report);
         assert!(m.edge_stats().boundary >= 3);
         let mut again = m.clone();
         fill_holes(&mut again, &HoleFillOptions::default());
-        assert_eq!(again.edge_stats().boundary, 0, "without the kept vertex the cube closes");
+        assert_eq!(again.edge_stats().boundary, 0, "without the kept edge the cube closes");
     }
 
     #[test]

@@ -385,7 +385,7 @@ fn draw_summary(
     lines.push((verdict.0.to_string(), 20, verdict.1));
     lines.push((
         format!(
-            "{} offsets in {} bins; top peak {:.1}% ({:.1}x flat)",
+            "{} offsets in {} bins; top peak {:.1}% ({:.1}× flat)",
             analysis.counts.offsets,
             analysis.counts.bins,
             100.0 * rep.top_peak_share,
@@ -896,33 +896,56 @@ pub fn plot_retarget_preview(
             RGBColor(200, 200, 200),
         ))
         .map_err(|e| plot_err(path, e))?;
-        for m in preview.marks.iter().filter(|m| m.panel < 2) {
+        // Marks: rings and arrows first, then every label, so that no label's box hides an
+        // arrow drawn after it.
+        let placed: Vec<(&PreviewMark, (i32, i32), Option<(i32, i32)>)> = preview
+            .marks
+            .iter()
+            .filter(|m| m.panel < 2)
+            .filter_map(|m| {
+                let px = |p: [f64; 3]| {
+                    let (x, y, _) = panel_px(m.panel, p);
+                    (x.round() as i32, y.round() as i32)
+                };
+                let inside = |p: &(i32, i32)| {
+                    p.0 >= (m.panel * panel_w) as i32
+                        && p.0 < ((m.panel + 1) * panel_w) as i32
+                        && p.1 >= top as i32
+                };
+                let at = Some(px(m.at)).filter(inside)?;
+                Some((m, at, m.from.map(px).filter(|f| *f != at && inside(f))))
+            })
+            .collect();
+        for &(m, at, from) in &placed {
             let colour = RGBColor(m.colour[0], m.colour[1], m.colour[2]);
-            let px = |p: [f64; 3]| {
-                let (x, y, _) = panel_px(m.panel, p);
-                (x.round() as i32, y.round() as i32)
-            };
-            let at = px(m.at);
-            if let Some(from) = m.from.map(px).filter(|&f| f != at) {
+            if let Some(from) = from {
                 let (dx, dy) = ((at.0 - from.0) as f64, (at.1 - from.1) as f64);
                 let len = dx.hypot(dy);
                 let (ux, uy) = (dx / len, dy / len);
+                // The head ends on the ring, not in its centre.
+                let tip = (at.0 - (ux * 9.0).round() as i32, at.1 - (uy * 9.0).round() as i32);
                 let head = |side: f64| {
                     let (hx, hy) = (-ux * 14.0 - side * uy * 7.0, -uy * 14.0 + side * ux * 7.0);
-                    (at.0 + hx.round() as i32, at.1 + hy.round() as i32)
+                    (tip.0 + hx.round() as i32, tip.1 + hy.round() as i32)
                 };
-                root.draw(&PathElement::new(vec![from, at], colour.stroke_width(3)))
+                root.draw(&PathElement::new(vec![from, tip], colour.stroke_width(3)))
                     .map_err(|e| plot_err(path, e))?;
-                root.draw(&Polygon::new(vec![at, head(1.0), head(-1.0)], colour.filled()))
+                root.draw(&Polygon::new(vec![tip, head(1.0), head(-1.0)], colour.filled()))
                     .map_err(|e| plot_err(path, e))?;
                 root.draw(&Circle::new(from, 5, colour.stroke_width(2))).map_err(|e| plot_err(path, e))?;
             }
             root.draw(&Circle::new(at, 9, colour.stroke_width(3))).map_err(|e| plot_err(path, e))?;
-            // The label on a white box beside the ring, kept inside its panel.
+        }
+        for &(m, at, _) in &placed {
+            let colour = RGBColor(m.colour[0], m.colour[1], m.colour[2]);
+            // The label on a white box beside the ring, centred on it, kept inside its panel and
+            // below the captions (the box assumes about 8 pixels per character of the 15-pixel
+            // font).
             let size = 15;
             let width = (m.label.chars().count() as i32) * 8 + 8;
-            let lx = (at.0 + 14).min(((m.panel + 1) * panel_w) as i32 - width - 4);
-            let ly = at.1 - 26;
+            let (x_lo, x_hi) = ((m.panel * panel_w) as i32 + 4, ((m.panel + 1) * panel_w) as i32 - width - 4);
+            let lx = (at.0 + 14).clamp(x_lo, x_hi.max(x_lo));
+            let ly = (at.1 - 10).max(top as i32 + 2);
             root.draw(&Rectangle::new(
                 [(lx - 3, ly - 2), (lx + width, ly + size + 4)],
                 WHITE.mix(0.85).filled(),

@@ -960,8 +960,6 @@ fn caps_and_fills_close_the_openings_of_real_models() {
     }
 }
 
-/// A bar 10⁴ long and 1 thick grown along a cell of 2500: seams are welded within a thousandth
-/// of a cell (2.5) but never across the bar's cross-section, whose corners are 1 apart.
 /// An open part does not turn capping off for the closed parts beside it: the CGAL cheese (whose
 /// growth needs caps) with a single-sided sheet hovering over it comes out with the cheese's
 /// copies closed, the sheet's copies open along their rims only, and no edge misoriented. (Before,
@@ -1029,9 +1027,24 @@ fn openings_of_an_open_part_stay_open_while_closed_parts_are_capped() {
         assert!(out.report.capped_loops > 0, "{steps:?}: the cheese's openings were capped");
         assert!(out.report.kept_open > 0, "{steps:?}: the sheet's openings were kept");
         assert_eq!(out.mesh.edge_stats().misoriented, 0, "{steps:?}: misoriented edges");
+        assert_eq!(out.mesh.degenerate_triangles(), 0, "{steps:?}: degenerate triangles");
     }
+    // The Kiva pod: its two open parts are cracks between duplicate vertices, next to closed
+    // parts whose openings capping merges and renumbers. The cracks' copies stay open and are not
+    // filled with triangles of no area (which happened while the marks of the input's boundary
+    // were not carried through capping's renumbering: 2 such triangles).
+    let kiva = motif_core::io::read_mesh(&dir.join("man-made/pyb_kiva_shelf_pod.stl")).expect("mesh loads");
+    let input = kiva.edge_stats();
+    let out = retarget(&kiva, &[[0.0, 0.2479, 0.0]], [2, 0, 0], &options, &NoProgress).expect("retarget");
+    let e = out.mesh.edge_stats();
+    println!("Kiva +2: {} open edges (input {}), {:?}", e.boundary, input.boundary, out.report.kept_open);
+    assert!(out.report.capped_loops > 0 && out.report.kept_open > 0, "{:?}", out.report);
+    assert_eq!((e.misoriented, out.mesh.degenerate_triangles()), (0, 0));
+    assert!(e.boundary < 165 / 2, "{} open edges (165 when nothing was capped)", e.boundary);
 }
 
+/// A bar 10⁴ long and 1 thick grown along a cell of 2500: seams are welded within a thousandth
+/// of a cell (2.5) but never across the bar's cross-section, whose corners are 1 apart.
 #[test]
 fn a_long_thin_bar_keeps_its_cross_section() {
     let bar = box_mesh([0.0; 3], [1e4, 1.0, 1.0], [1, 1, 1]).unwrap();

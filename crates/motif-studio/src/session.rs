@@ -832,8 +832,10 @@ pub fn retarget(shared: &Shared, seq: u32, steps: [i32; 3]) -> Result<Vec<Out>> 
     let warning = (rep.infinite_seams > 0).then(|| {
         format!(
             "no seam-consistent stitching for these steps: at {} of {} seams one copy meets empty space in \
-             another; the result has {} open edges (the input {})",
-            rep.infinite_seams, rep.seams, rep.output_boundary_edges, r.input_boundary
+             another; {}",
+            rep.infinite_seams,
+            rep.seams,
+            motif_retarget::retarget::open_edges_after(rep.output_boundary_edges, r.input_boundary)
         )
     });
     let out = vec![

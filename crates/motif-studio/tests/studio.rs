@@ -433,7 +433,7 @@ async fn a_resize_that_cannot_stitch_cleanly_warns() {
     match next_text(&mut ws).await {
         ServerMessage::Retargeted { warning, .. } => {
             let w = warning.expect("a warning");
-            assert!(w.contains("no seam-consistent stitching") && w.contains("open edges"), "{w}");
+            assert!(w.contains("no seam-consistent stitching") && w.contains("open boundary edges"), "{w}");
         }
         other => panic!("expected retargeted, got {other:?}"),
     }

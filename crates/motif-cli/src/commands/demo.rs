@@ -391,7 +391,12 @@ fn deformation(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
     let bb = mesh.aabb().context("non-empty windmill")?;
     let diag = bb.diagonal();
     // The blade tip: the vertex farthest from the hub along +x; the tower foot stays put.
-    let tip = mesh.positions.iter().copied().max_by(|a, b| a[0].total_cmp(&b[0])).context("vertices")?;
+    let tip_index = (0..mesh.positions.len())
+        .max_by(|&a, &b| mesh.positions[a][0].total_cmp(&mesh.positions[b][0]))
+        .context("vertices")?;
+    let tip = mesh.positions[tip_index];
+    // The drag, as a share k of the way: forward (+z) and down.
+    let drag = |k: f64| procedural::translation([0.0, -0.05 * k * diag, 0.15 * k * diag]);
     let foot = mesh.positions.iter().copied().min_by(|a, b| a[1].total_cmp(&b[1])).context("vertices")?;
     let handles = [
         Handle::fixed(procedural::Region::Sphere { center: foot, radius: 0.08 * diag }),
@@ -411,7 +416,7 @@ fn deformation(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
         for f in 1..=20 {
             // Drag the tip forward (+z) and bend it: 20 frames of an interactive drag.
             let k = f as f64 / 20.0;
-            let lift = procedural::translation([0.0, -0.05 * k * diag, 0.15 * k * diag]);
+            let lift = drag(k);
             let t = std::time::Instant::now();
             s.solve(&[geometry::IDENTITY4, lift])?;
             frame_ms.push(ms_since(t));
@@ -424,11 +429,19 @@ fn deformation(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
         // The rest shape beside the dragged one, seen from the front at a slant.
         let png = p.with_extension("png");
         use motif_retarget::plot::PreviewMark;
-        // Where the last frame put the handle.
-        let target =
-            geometry::transform_point(&procedural::translation([0.0, -0.05 * diag, 0.15 * diag]), tip);
-        let (pin, drag) = ([90, 90, 90], [200, 40, 40]);
-        let text = motif_retarget::plot::PreviewText {
+        // Where the last frame asked the handle to go, and where the tip went (symmetries and
+        // the fixed foot can hold it back).
+        let target = geometry::transform_point(&drag(1.0), tip);
+        let reached = out.positions[tip_index];
+        let (pin, drag_colour, reached_colour) = ([90, 90, 90], [200, 40, 40], [30, 110, 200]);
+        let mark = |panel, at, from, label: &str, colour| PreviewMark {
+            panel,
+            at,
+            from,
+            label: label.to_string(),
+            colour,
+        };
+        let mut text = motif_retarget::plot::PreviewText {
             title: format!(
                 "windmill: rest (left) and one blade dragged {} (right)",
                 if mode == SymmetryMode::Preserve {
@@ -438,19 +451,19 @@ fn deformation(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
                 }
             ),
             marks: vec![
-                PreviewMark { panel: 0, at: foot, from: None, label: "fixed".into(), colour: pin },
-                PreviewMark { panel: 0, at: tip, from: None, label: "dragged handle".into(), colour: drag },
-                PreviewMark { panel: 1, at: foot, from: None, label: "fixed".into(), colour: pin },
-                PreviewMark {
-                    panel: 1,
-                    at: target,
-                    from: Some(tip),
-                    label: "dragged here".into(),
-                    colour: drag,
-                },
+                mark(0, foot, None, "fixed", pin),
+                mark(0, tip, None, "dragged handle", drag_colour),
+                mark(1, foot, None, "fixed", pin),
+                mark(1, target, Some(tip), "target", drag_colour),
             ],
             ..Default::default()
         };
+        // Where the tip went, unless it reached the target (a ring on a ring).
+        if geometry::dist(reached, target) > 0.01 * diag {
+            text.marks.push(mark(1, reached, None, "tip", reached_colour));
+        } else if let Some(m) = text.marks.last_mut() {
+            m.label = "target, reached".into();
+        }
         motif_retarget::plot::plot_retarget_preview(
             mesh,
             &out,

@@ -551,7 +551,11 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         }
         if r.capped_loops + r.filled_holes + r.output_boundary_edges > 0 {
             let kept = if r.kept_open > 0 {
-                format!("; {} openings along the input's own open boundary kept open", r.kept_open)
+                format!(
+                    "; {} {} along the input's own open boundary kept open",
+                    r.kept_open,
+                    if r.kept_open == 1 { "opening" } else { "openings" }
+                )
             } else {
                 String::new()
             };
@@ -604,9 +608,10 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             "warning: no seam-consistent stitching was found for these steps (energy +inf): at {} of \
                  {} seams one copy's geometry meets empty space in another copy (an empty voxel of the \
                  input, or beyond its end when the input is only a few cells long along a grown \
-                 direction); the output has {} open boundary edges (the input has {}). {others}; \
-                 --preview PNG shows the result",
-            r.infinite_seams, r.seams, r.output_boundary_edges, input_boundary
+                 direction); {}. {others}; --preview PNG shows the result",
+            r.infinite_seams,
+            r.seams,
+            motif_retarget::retarget::open_edges_after(r.output_boundary_edges, input_boundary)
         );
     }
     if !g.quiet {

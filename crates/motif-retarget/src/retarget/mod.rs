@@ -203,11 +203,11 @@ pub struct RetargetOptions {
     /// stand-in for +∞ inside moves).
     pub graph_cut: AlphaExpansionOptions,
     /// Cap the openings that cuts at voxel faces leave where no copy continues them (seams of
-    /// infinite cost), except openings that touch the input's own open boundary (see the `caps`
-    /// module). Not in the thesis; default true.
+    /// infinite cost), except openings that run along the input's own open boundary (an edge
+    /// copied from it; see the `caps` module). Not in the thesis; default true.
     pub cap_openings: bool,
-    /// Fill the holes still open after welding and capping, except those that touch the input's
-    /// own open boundary (a scan's edge, a single-sided sheet stays as it was): slits along
+    /// Fill the holes still open after welding and capping, except those that run along the
+    /// input's own open boundary (a scan's edge, a single-sided sheet stays as it was): slits along
     /// seams where two neighbouring copies' geometry differs, which no copy continues and no
     /// voxel face plane holds ([`motif_core::hole_fill`]: Liepa's triangulation of each boundary
     /// loop, no new vertices). Not in the thesis; default true.
@@ -412,8 +412,8 @@ pub struct RetargetReport {
     /// rest of the surface ([`motif_core::TriMesh::orient_patches`]).
     #[serde(default)]
     pub reoriented_triangles: usize,
-    /// Openings left open because they run along the input's own open boundary (loops through
-    /// a vertex copied from it, as the last of capping and filling saw them).
+    /// Openings left open because they run along the input's own open boundary (loops with an
+    /// edge copied from it, as the last of capping and filling saw them).
     #[serde(default)]
     pub kept_open: usize,
     /// `normalised_from_model`, row-major 4×4.
@@ -453,13 +453,29 @@ pub struct RetargetSession {
     cache: DistanceCache,
     precompute: StageTimings,
     precompute_ms: f64,
-    /// Whether to cap openings ([`RetargetOptions::cap_openings`]; openings that touch the
-    /// input's own open boundary are left open).
+    /// Whether to cap openings ([`RetargetOptions::cap_openings`]; openings along the input's
+    /// own open boundary are left open).
     cap_openings: bool,
     /// Whether to fill holes ([`RetargetOptions::fill_holes`]; likewise).
     fill_holes: bool,
     /// The cut mesh's open boundary and orientation (openings the input has stay open).
     input_surface: stitch::InputSurface,
+}
+
+/// What a stitching with seams of infinite cost left open, in words for a warning: the output's
+/// open edges against the input's, or that caps and fills closed what the seams opened (the
+/// gridbeam shelf grown in width: every seam infinite, no edge left open).
+pub fn open_edges_after(output_boundary_edges: usize, input_boundary_edges: usize) -> String {
+    if output_boundary_edges <= input_boundary_edges {
+        format!(
+            "caps and fills closed the openings this leaves (the output has {output_boundary_edges} open \
+             boundary edges, the input {input_boundary_edges}), but the copies may not meet as the input's cells do"
+        )
+    } else {
+        format!(
+            "the output has {output_boundary_edges} open boundary edges (the input has {input_boundary_edges})"
+        )
+    }
 }
 
 impl RetargetSession {

@@ -317,8 +317,9 @@ pub(crate) fn stitch(
     }
     // Output vertices copied from a vertex on the input's own open boundary: openings through
     // them are the input's and are neither capped nor filled.
-    let mut keep_open = vec![false; new_positions.len()];
+    let mut keep_open = Vec::new();
     if !input_boundary.is_empty() {
+        keep_open = vec![false; new_positions.len()];
         for (i, &(v, _)) in origin_of.iter().enumerate() {
             if input_boundary[v as usize] {
                 keep_open[remap[i] as usize] = true;
@@ -329,13 +330,21 @@ pub(crate) fn stitch(
     let mut triangle_voxels = kept_voxels;
     let open = weld_tolerance <= 0.0 || split_t_junctions(&mut mesh, &mut triangle_voxels, weld_tolerance);
     let capped = if cap && open {
-        cap_openings(&mut mesh, &mut triangle_voxels, grid_in, out_dims, lattice, weld_tolerance, &keep_open)
+        cap_openings(
+            &mut mesh,
+            &mut triangle_voxels,
+            grid_in,
+            out_dims,
+            lattice,
+            weld_tolerance,
+            &mut keep_open,
+        )
     } else {
         Capped::default()
     };
     let filled = if fill_open && open {
-        let kept = |v: u32| keep_open.get(v as usize).copied().unwrap_or(false);
-        let f = fill_holes_except(&mut mesh, &HoleFillOptions::default(), &kept);
+        let on = |v: u32| keep_open.get(v as usize).copied().unwrap_or(false);
+        let f = fill_holes_except(&mut mesh, &HoleFillOptions::default(), &|a, b| on(a) && on(b));
         for &t in &f.neighbour {
             triangle_voxels.push(triangle_voxels[t as usize]);
         }
