@@ -830,9 +830,22 @@ pub fn retarget(shared: &Shared, seq: u32, steps: [i32; 3]) -> Result<Vec<Out>> 
     // same on stderr, and its --preview in red).
     let rep = &res.report;
     let warning = (rep.infinite_seams > 0).then(|| {
+        // Nearby steps that do stitch cleanly (a few more solves, milliseconds each).
+        let n = r.principal.len().clamp(1, 3);
+        let others: Vec<String> = r
+            .session
+            .clean_alternatives(steps)
+            .iter()
+            .map(|s| format!("steps {}", s[..n].iter().map(i32::to_string).collect::<Vec<_>>().join(", ")))
+            .collect();
+        let others = match others.len() {
+            0 => String::new(),
+            1 => format!("; {} stitches cleanly", others[0]),
+            _ => format!("; {} stitch cleanly", others.join(" and ")),
+        };
         format!(
             "no seam-consistent stitching for these steps: at {} of {} seams one copy meets empty space in \
-             another; {}",
+             another; {}{others}",
             rep.infinite_seams,
             rep.seams,
             motif_retarget::retarget::open_edges_after(rep.output_boundary_edges, r.input_boundary)

@@ -434,7 +434,15 @@ async fn a_resize_that_cannot_stitch_cleanly_warns() {
         ServerMessage::Retargeted { warning, .. } => {
             let w = warning.expect("a warning");
             assert!(w.contains("no seam-consistent stitching") && w.contains("open boundary edges"), "{w}");
+            assert!(w.contains("steps 1, 0, 0 stitches cleanly"), "{w}");
         }
+        other => panic!("expected retargeted, got {other:?}"),
+    }
+    assert!(matches!(next(&mut ws).await, Reply::Binary(_)));
+    // The steps suggested do stitch without a warning.
+    send(&mut ws, json!({"type": "retarget", "seq": 2, "steps": [1, 0, 0]})).await;
+    match next_text(&mut ws).await {
+        ServerMessage::Retargeted { warning, .. } => assert_eq!(warning, None),
         other => panic!("expected retargeted, got {other:?}"),
     }
     assert!(matches!(next(&mut ws).await, Reply::Binary(_)));

@@ -33,7 +33,7 @@ struct Report<'a> {
     retarget: Option<RetargetReport>,
     plain_resize: Option<[f64; 3]>,
     /// When the stitching has seams of infinite cost: the nearby steps that stitch without any
-    /// (see [`clean_alternatives`]).
+    /// (see [`RetargetSession::clean_alternatives`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     clean_alternatives: Option<Vec<[i32; 3]>>,
     analysis_ms: f64,
@@ -79,37 +79,6 @@ impl Request {
 /// The size of `mesh`'s bounding box.
 fn size_of(mesh: &TriMesh) -> Option<[f64; 3]> {
     mesh.aabb().map(|b| b.extent())
-}
-
-/// Steps near `steps` to suggest when `steps` stitch with seams of infinite cost: each requested
-/// direction alone (when several are), and a single requested count moved to every other
-/// principal offset (the heat sink of `../shared/data` grown by two along its 12.5 mm screw-hole
-/// spacing has infinite seams, by two fins along its 3.8 mm offset none). Each candidate is one
-/// more solve on the session's descriptors (milliseconds); those with no infinite seam are
-/// returned, in this order.
-fn clean_alternatives(session: &mut RetargetSession, steps: [i32; 3], num_offsets: usize) -> Vec<[i32; 3]> {
-    let requested: Vec<usize> = (0..3).filter(|&k| steps[k] != 0).collect();
-    let mut candidates: Vec<[i32; 3]> = Vec::new();
-    if requested.len() > 1 {
-        for &k in &requested {
-            let mut s = [0; 3];
-            s[k] = steps[k];
-            candidates.push(s);
-        }
-    }
-    if let [k] = requested[..] {
-        for j in (0..num_offsets.min(3)).filter(|&j| j != k) {
-            let mut s = [0; 3];
-            s[j] = steps[k];
-            candidates.push(s);
-        }
-    }
-    candidates
-        .into_iter()
-        .filter(|&s| {
-            session.retarget(s, &motif_core::progress::NoProgress).is_ok_and(|r| r.report.infinite_seams == 0)
-        })
-        .collect()
 }
 
 /// Parses `--offsets`: one to three finite, non-zero, linearly independent vectors X,Y,Z
@@ -498,12 +467,8 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         }
         Err(e) => return Err(anyhow::Error::from(e).context(in_mesh())),
     };
-    let alternatives = (res.report.infinite_seams > 0).then(|| {
-        clean_alternatives(&mut session, to_solver(steps), principal.len())
-            .into_iter()
-            .map(to_user)
-            .collect::<Vec<_>>()
-    });
+    let alternatives = (res.report.infinite_seams > 0)
+        .then(|| session.clean_alternatives(to_solver(steps)).into_iter().map(to_user).collect::<Vec<_>>());
     motif_core::io::write(&a.output, &Model::from_mesh(&res.mesh), &WriteOptions::default())?;
     if let Some(p) = &a.preview {
         let (view, up) = preview_camera(&mesh, &principal);

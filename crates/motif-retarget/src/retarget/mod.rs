@@ -634,6 +634,38 @@ impl RetargetSession {
         })
     }
 
+    /// Steps near `steps` to suggest when `steps` stitch with seams of infinite cost: each
+    /// requested direction alone (when several are), and a single requested count moved to every
+    /// other principal offset (the heat sink of `../shared/data` grown by two along its 12.5 mm
+    /// screw-hole spacing has infinite seams, by two fins along its 3.8 mm offset none). Each
+    /// candidate is one more solve on the session's descriptors (milliseconds); those with no
+    /// infinite seam are returned, in this order. Steps are in the session's order of offsets.
+    pub fn clean_alternatives(&mut self, steps: [i32; 3]) -> Vec<[i32; 3]> {
+        let requested: Vec<usize> = (0..3).filter(|&k| steps[k] != 0).collect();
+        let mut candidates: Vec<[i32; 3]> = Vec::new();
+        if requested.len() > 1 {
+            for &k in &requested {
+                let mut s = [0; 3];
+                s[k] = steps[k];
+                candidates.push(s);
+            }
+        }
+        if let [k] = requested[..] {
+            for j in (0..self.principal_offsets.len().min(3)).filter(|&j| j != k) {
+                let mut s = [0; 3];
+                s[j] = steps[k];
+                candidates.push(s);
+            }
+        }
+        candidates
+            .into_iter()
+            .filter(|&s| {
+                self.retarget(s, &motif_core::progress::NoProgress)
+                    .is_ok_and(|r| r.report.infinite_seams == 0)
+            })
+            .collect()
+    }
+
     /// Voxels of the input grid per axis (U_in, V_in, W_in).
     pub fn input_voxels(&self) -> [usize; 3] {
         self.grid.dims
