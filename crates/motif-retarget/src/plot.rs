@@ -9,7 +9,9 @@
 //!   summed along the dropped axis, log colour scale), drawn point-symmetric (each bin also at
 //!   `−v`, since `v` and `−v` are one repetition), with the dominant offsets circled (accepted ones
 //!   in blue, rejected ones grey) and the principal offsets as arrows from the origin labelled
-//!   `v1 …` and their support;
+//!   `p0 …` (numbered by model axis, as `--steps` counts them) and their support; when every
+//!   offset lies along one axis (a fence), one profile of the counts along it instead
+//!   ([`line_axis`]);
 //! - a bar chart of the dominant offsets' support, principal ones highlighted, with the verdict and
 //!   the principal offsets in model units below.
 
@@ -133,7 +135,6 @@ const PRINCIPAL_COLOURS: [RGBColor; 3] =
 pub fn plot_offsets(analysis: &OffsetAnalysis, title: &str, path: &Path) -> Result<()> {
     render_png(path, (1500, 1000), |root| {
         let (top, bottom) = root.split_vertically(560);
-        let panels = top.split_evenly((1, 3));
         let h = analysis.bin_size;
         // Symmetric extent covering every bin and principal offset, at least 0.5.
         let mut extent: f64 = 0.5;
@@ -148,12 +149,168 @@ pub fn plot_offsets(analysis: &OffsetAnalysis, title: &str, path: &Path) -> Resu
             }
         }
         let extent = extent * 1.05;
+        // Offsets along one line (a fence, a row of columns): the three projections would show
+        // that line twice and a dot, so one profile along it is drawn instead.
+        if let Some(a) = line_axis(analysis) {
+            draw_profile(&top, analysis, a, extent, path)?;
+            return draw_summary(&bottom, analysis, title, path);
+        }
+        let panels = top.split_evenly((1, 3));
         let axes = [(0usize, 1usize, "XY"), (0, 2, "XZ"), (1, 2, "YZ")];
         for (panel, &(a, b, name)) in panels.iter().zip(axes.iter()) {
             draw_projection(panel, analysis, a, b, name, extent, path)?;
         }
         draw_summary(&bottom, analysis, title, path)
     })
+}
+
+/// The axis the offsets lie along when all but [`LINE_SPREAD`] of their mass has bin index 0 on
+/// both other axes, and every principal offset runs along it (within half a bin); `None`
+/// otherwise.
+pub fn line_axis(analysis: &OffsetAnalysis) -> Option<usize> {
+    let total: f64 = analysis.histogram.iter().map(|b| b.count as f64).sum();
+    if total <= 0.0 {
+        return None;
+    }
+    let off =
+        |k: usize| analysis.histogram.iter().filter(|b| b.index[k] != 0).map(|b| b.count as f64).sum::<f64>();
+    let flat: Vec<bool> = (0..3).map(|k| off(k) <= LINE_SPREAD * total).collect();
+    let a = (0..3).find(|&k| !flat[k])?;
+    let along = (0..3).filter(|&k| k != a).all(|k| flat[k]);
+    let principal_along = analysis
+        .principal
+        .iter()
+        .all(|p| (0..3).filter(|&k| k != a).all(|k| p.offset[k].abs() < 0.5 * analysis.bin_size));
+    (along && principal_along).then_some(a)
+}
+
+/// Share of the offsets that may lie off the line for [`line_axis`] to call it one (the
+/// generated fence: 0.2% of its offsets have a bin off its length).
+const LINE_SPREAD: f64 = 0.02;
+
+/// The histogram of offsets along axis `a` (counts per bin, summed over the other axes, log
+/// scale), with the τ band, the histogram peaks and the principal offsets: the picture for
+/// offsets that all lie along one line.
+fn draw_profile(
+    area: &DrawingArea<TextFix<BitMapBackend<'_>>, Shift>,
+    analysis: &OffsetAnalysis,
+    a: usize,
+    extent: f64,
+    path: &Path,
+) -> Result<()> {
+    let axis = ["x", "y", "z"];
+    let h = analysis.bin_size;
+    let mut counts: std::collections::BTreeMap<i32, f64> = std::collections::BTreeMap::new();
+    for bin in &analysis.histogram {
+        *counts.entry(bin.index[a]).or_default() += bin.count as f64;
+        if analysis.parameters.sign == crate::offsets::SignConvention::Canonical && bin.index[a] != 0 {
+            *counts.entry(-bin.index[a]).or_default() += bin.count as f64;
+        }
+    }
+    let max = counts.values().copied().fold(1.0, f64::max);
+    let top = max * 4.0;
+    let mut chart = ChartBuilder::on(area)
+        .caption(
+            format!(
+                "offsets along {} (every offset lies on this line; bin {h}, count per bin, log scale)",
+                axis[a]
+            ),
+            (FONT, 18).into_font(),
+        )
+        .margin(16)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d(-extent..extent, (0.8f64..top).log_scale())
+        .map_err(|e| plot_err(path, e))?;
+    chart
+        .configure_mesh()
+        .x_desc(format!("{} (normalised)", axis[a]))
+        .y_desc("offsets in the bin")
+        .y_label_formatter(&|v| format!("{v:.0}"))
+        .label_style((FONT, 13))
+        .axis_desc_style((FONT, 14))
+        .light_line_style(RGBColor(235, 235, 235))
+        .draw()
+        .map_err(|e| plot_err(path, e))?;
+    // The τ band: offsets shorter than τ are left out by eq. 4.1.
+    let tau = analysis.parameters.tau;
+    chart
+        .draw_series(std::iter::once(Rectangle::new(
+            [(-tau, 0.8), (tau, top)],
+            RGBColor(236, 236, 236).filled(),
+        )))
+        .map_err(|e| plot_err(path, e))?;
+    chart
+        .draw_series(std::iter::once(Text::new(
+            "|v| < τ: ignored".to_string(),
+            (-tau + 0.01 * extent, top / 1.6),
+            (FONT, 13).into_font().color(&RGBColor(110, 110, 110)),
+        )))
+        .map_err(|e| plot_err(path, e))?;
+    let log_max = (1.0 + max).ln();
+    chart
+        .draw_series(counts.iter().map(|(&i, &m)| {
+            let x = i as f64 * h;
+            Rectangle::new([(x - 0.45 * h, 0.8), (x + 0.45 * h, m)], heat((1.0 + m).ln() / log_max).filled())
+        }))
+        .map_err(|e| plot_err(path, e))?;
+    // Histogram peaks at their support's height, both signs.
+    for (k, d) in analysis.dominant.iter().enumerate() {
+        let colour = match d.status {
+            DominantStatus::Accepted => RGBColor(0, 90, 200),
+            _ => RGBColor(140, 140, 140),
+        };
+        let y = (d.peak.support as f64).max(1.0);
+        for s in [1.0, -1.0] {
+            let p = (s * d.offset[a], y);
+            chart
+                .draw_series(std::iter::once(Circle::new(p, 9, colour.stroke_width(2))))
+                .map_err(|e| plot_err(path, e))?;
+            if s > 0.0 && k < 8 {
+                chart
+                    .draw_series(std::iter::once(Text::new(
+                        format!("{k}"),
+                        (p.0 + 0.015 * extent, y * 1.35),
+                        (FONT, 12).into_font().color(&colour),
+                    )))
+                    .map_err(|e| plot_err(path, e))?;
+            }
+        }
+    }
+    // Principal offsets: a line from the origin to each, at the top, labelled.
+    let rejected = analysis.repetition.kind == crate::offsets::Repetition::NoRepetition;
+    for (row, (i, k)) in principal_numbering(analysis).into_iter().enumerate() {
+        let p = &analysis.principal[k];
+        let colour = principal_colour(analysis, i);
+        let x = p.offset[a];
+        let y = top / (1.5 * 1.4f64.powi(row as i32));
+        let shaft = vec![(0.0, y), (x, y)];
+        if rejected {
+            chart
+                .draw_series(std::iter::once(plotters::element::DashedPathElement::new(
+                    shaft,
+                    8,
+                    6,
+                    colour.stroke_width(3),
+                )))
+                .map_err(|e| plot_err(path, e))?;
+        } else {
+            chart
+                .draw_series(std::iter::once(PathElement::new(shaft, colour.stroke_width(3))))
+                .map_err(|e| plot_err(path, e))?;
+        }
+        chart
+            .draw_series(std::iter::once(Circle::new((x, y), 5, colour.filled())))
+            .map_err(|e| plot_err(path, e))?;
+        chart
+            .draw_series(std::iter::once(Text::new(
+                format!("p{i}{} ({})", if rejected { " rejected" } else { "" }, p.support),
+                (x + 0.015 * extent * x.signum(), y * 1.12),
+                (FONT, 15).into_font().style(FontStyle::Bold).color(&colour),
+            )))
+            .map_err(|e| plot_err(path, e))?;
+    }
+    Ok(())
 }
 
 fn draw_projection(
@@ -178,7 +335,7 @@ fn draw_projection(
     }
     let max = cells.values().copied().fold(1.0, f64::max);
     let mut chart = ChartBuilder::on(area)
-        .caption(format!("offsets projected on {name} (bin {h} , log colour)"), (FONT, 18).into_font())
+        .caption(format!("offsets projected on {name} (bin {h}, log colour)"), (FONT, 18).into_font())
         .margin(12)
         .x_label_area_size(36)
         .y_label_area_size(46)
@@ -453,9 +610,10 @@ fn draw_summary(
         13,
         grey,
     ));
+    let tau_mark =
+        if line_axis(analysis).is_some() { "grey band = |v| < τ" } else { "thin circle = |v| = τ" };
     lines.push((
-        "too little / no surface overlap, dup a repeat); thin circle = |v| = τ, offsets inside are ignored"
-            .into(),
+        format!("too little / no surface overlap, dup a repeat); {tau_mark}, offsets inside are ignored"),
         13,
         grey,
     ));

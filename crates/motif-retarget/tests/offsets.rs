@@ -209,6 +209,14 @@ fn the_offset_picture_is_written() {
     let bytes = std::fs::read(&path).expect("png written");
     assert!(bytes.starts_with(b"\x89PNG"));
     let _ = std::fs::remove_file(&path);
+    // A shelf's offsets span its plane; a fence's lie along its length (x), which the picture
+    // then draws as one profile instead of three projections.
+    assert_eq!(motif_retarget::plot::line_axis(&a), None);
+    let fence = analyze(&generate("fence", 0).expect("example").mesh);
+    assert_eq!(motif_retarget::plot::line_axis(&fence), Some(0));
+    motif_retarget::plot::plot_offsets(&fence, "fence", &path).expect("plot");
+    assert!(std::fs::read(&path).expect("png written").starts_with(b"\x89PNG"));
+    let _ = std::fs::remove_file(&path);
 }
 
 #[test]
