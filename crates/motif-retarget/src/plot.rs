@@ -164,7 +164,7 @@ pub fn plot_offsets(analysis: &OffsetAnalysis, title: &str, path: &Path) -> Resu
     })
 }
 
-/// The axis the offsets lie along when all but [`LINE_SPREAD`] of their mass has bin index 0 on
+/// The axis the offsets lie along when all but 2% of their mass has bin index 0 on
 /// both other axes, and every principal offset runs along it (within half a bin); `None`
 /// otherwise.
 pub fn line_axis(analysis: &OffsetAnalysis) -> Option<usize> {
