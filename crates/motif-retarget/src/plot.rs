@@ -164,6 +164,25 @@ pub fn plot_offsets(analysis: &OffsetAnalysis, title: &str, path: &Path) -> Resu
     })
 }
 
+/// Colour of a dominant offset's circle: blue when it refined to a repetition, grey otherwise.
+fn dominant_colour(status: DominantStatus) -> RGBColor {
+    match status {
+        DominantStatus::Accepted => RGBColor(0, 90, 200),
+        _ => RGBColor(140, 140, 140),
+    }
+}
+
+/// A principal offset's shaft: solid, or dashed when the verdict rejected it (solid is one dash
+/// longer than any picture).
+fn shaft<C: Clone>(
+    points: Vec<C>,
+    rejected: bool,
+    colour: RGBColor,
+) -> plotters::element::DashedPathElement<std::vec::IntoIter<C>, i32> {
+    let dash = if rejected { 8 } else { 100_000 };
+    plotters::element::DashedPathElement::new(points, dash, 6, colour.stroke_width(3))
+}
+
 /// The axis the offsets lie along when all but 2% of their mass has bin index 0 on
 /// both other axes, and every principal offset runs along it (within half a bin); `None`
 /// otherwise.
@@ -256,10 +275,7 @@ fn draw_profile(
         .map_err(|e| plot_err(path, e))?;
     // Histogram peaks at their support's height, both signs.
     for (k, d) in analysis.dominant.iter().enumerate() {
-        let colour = match d.status {
-            DominantStatus::Accepted => RGBColor(0, 90, 200),
-            _ => RGBColor(140, 140, 140),
-        };
+        let colour = dominant_colour(d.status);
         let y = (d.peak.support as f64).max(1.0);
         for s in [1.0, -1.0] {
             let p = (s * d.offset[a], y);
@@ -284,21 +300,9 @@ fn draw_profile(
         let colour = principal_colour(analysis, i);
         let x = p.offset[a];
         let y = top / (1.5 * 1.4f64.powi(row as i32));
-        let shaft = vec![(0.0, y), (x, y)];
-        if rejected {
-            chart
-                .draw_series(std::iter::once(plotters::element::DashedPathElement::new(
-                    shaft,
-                    8,
-                    6,
-                    colour.stroke_width(3),
-                )))
-                .map_err(|e| plot_err(path, e))?;
-        } else {
-            chart
-                .draw_series(std::iter::once(PathElement::new(shaft, colour.stroke_width(3))))
-                .map_err(|e| plot_err(path, e))?;
-        }
+        chart
+            .draw_series(std::iter::once(shaft(vec![(0.0, y), (x, y)], rejected, colour)))
+            .map_err(|e| plot_err(path, e))?;
         chart
             .draw_series(std::iter::once(Circle::new((x, y), 5, colour.filled())))
             .map_err(|e| plot_err(path, e))?;
@@ -371,10 +375,7 @@ fn draw_projection(
         .map_err(|e| plot_err(path, e))?;
     // Dominant offsets.
     for (k, d) in analysis.dominant.iter().enumerate() {
-        let colour = match d.status {
-            DominantStatus::Accepted => RGBColor(0, 90, 200),
-            _ => RGBColor(140, 140, 140),
-        };
+        let colour = dominant_colour(d.status);
         for s in [1.0, -1.0] {
             let p = (s * d.offset[a], s * d.offset[b]);
             chart
@@ -410,23 +411,9 @@ fn draw_projection(
         let back = (x - head * ux, y - head * uy);
         let left = (back.0 - 0.45 * head * uy, back.1 + 0.45 * head * ux);
         let right = (back.0 + 0.45 * head * uy, back.1 - 0.45 * head * ux);
-        if rejected {
-            chart
-                .draw_series(std::iter::once(plotters::element::DashedPathElement::new(
-                    vec![(0.0, 0.0), (x, y)],
-                    8,
-                    6,
-                    colour.stroke_width(3),
-                )))
-                .map_err(|e| plot_err(path, e))?;
-        } else {
-            chart
-                .draw_series(std::iter::once(PathElement::new(
-                    vec![(0.0, 0.0), (x, y)],
-                    colour.stroke_width(3),
-                )))
-                .map_err(|e| plot_err(path, e))?;
-        }
+        chart
+            .draw_series(std::iter::once(shaft(vec![(0.0, 0.0), (x, y)], rejected, colour)))
+            .map_err(|e| plot_err(path, e))?;
         chart
             .draw_series(std::iter::once(Polygon::new(vec![(x, y), left, right], colour.filled())))
             .map_err(|e| plot_err(path, e))?;
