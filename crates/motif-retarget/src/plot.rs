@@ -172,6 +172,31 @@ fn dominant_colour(status: DominantStatus) -> RGBColor {
     }
 }
 
+/// The dominant offsets' rings, at `at(d, ±1)` (both signs: `v` and `−v` are one repetition),
+/// and the numbers of the first eight beside their positive ring (`label_at` of its position).
+fn peak_marks(
+    analysis: &OffsetAnalysis,
+    at: impl Fn(&crate::offsets::DominantOffset, f64) -> (f64, f64),
+    label_at: impl Fn((f64, f64)) -> (f64, f64),
+) -> (Vec<Circle<(f64, f64), i32>>, Vec<Text<'static, (f64, f64), String>>) {
+    let mut rings = Vec::new();
+    let mut labels = Vec::new();
+    for (k, d) in analysis.dominant.iter().enumerate() {
+        let colour = dominant_colour(d.status);
+        for s in [1.0, -1.0] {
+            rings.push(Circle::new(at(d, s), 9, colour.stroke_width(2)));
+        }
+        if k < 8 {
+            labels.push(Text::new(
+                format!("{k}"),
+                label_at(at(d, 1.0)),
+                (FONT, 12).into_font().color(&colour),
+            ));
+        }
+    }
+    (rings, labels)
+}
+
 /// A principal offset's shaft: solid, or dashed when the verdict rejected it (solid is one dash
 /// longer than any picture).
 fn shaft<C: Clone>(
@@ -274,25 +299,13 @@ fn draw_profile(
         }))
         .map_err(|e| plot_err(path, e))?;
     // Histogram peaks at their support's height, both signs.
-    for (k, d) in analysis.dominant.iter().enumerate() {
-        let colour = dominant_colour(d.status);
-        let y = (d.peak.support as f64).max(1.0);
-        for s in [1.0, -1.0] {
-            let p = (s * d.offset[a], y);
-            chart
-                .draw_series(std::iter::once(Circle::new(p, 9, colour.stroke_width(2))))
-                .map_err(|e| plot_err(path, e))?;
-            if s > 0.0 && k < 8 {
-                chart
-                    .draw_series(std::iter::once(Text::new(
-                        format!("{k}"),
-                        (p.0 + 0.015 * extent, y * 1.35),
-                        (FONT, 12).into_font().color(&colour),
-                    )))
-                    .map_err(|e| plot_err(path, e))?;
-            }
-        }
-    }
+    let (rings, labels) = peak_marks(
+        analysis,
+        |d, s| (s * d.offset[a], (d.peak.support as f64).max(1.0)),
+        |p| (p.0 + 0.015 * extent, p.1 * 1.35),
+    );
+    chart.draw_series(rings).map_err(|e| plot_err(path, e))?;
+    chart.draw_series(labels).map_err(|e| plot_err(path, e))?;
     // Principal offsets: a line from the origin to each, at the top, labelled.
     let rejected = analysis.repetition.kind == crate::offsets::Repetition::NoRepetition;
     for (row, (i, k)) in principal_numbering(analysis).into_iter().enumerate() {
@@ -374,24 +387,13 @@ fn draw_projection(
         .draw_series(std::iter::once(PathElement::new(circle, RGBColor(150, 150, 150).stroke_width(1))))
         .map_err(|e| plot_err(path, e))?;
     // Dominant offsets.
-    for (k, d) in analysis.dominant.iter().enumerate() {
-        let colour = dominant_colour(d.status);
-        for s in [1.0, -1.0] {
-            let p = (s * d.offset[a], s * d.offset[b]);
-            chart
-                .draw_series(std::iter::once(Circle::new(p, 9, colour.stroke_width(2))))
-                .map_err(|e| plot_err(path, e))?;
-            if s > 0.0 && k < 8 {
-                chart
-                    .draw_series(std::iter::once(Text::new(
-                        format!("{k}"),
-                        (p.0 + 0.02 * extent, p.1 + 0.03 * extent),
-                        (FONT, 12).into_font().color(&colour),
-                    )))
-                    .map_err(|e| plot_err(path, e))?;
-            }
-        }
-    }
+    let (rings, labels) = peak_marks(
+        analysis,
+        |d, s| (s * d.offset[a], s * d.offset[b]),
+        |p| (p.0 + 0.02 * extent, p.1 + 0.03 * extent),
+    );
+    chart.draw_series(rings).map_err(|e| plot_err(path, e))?;
+    chart.draw_series(labels).map_err(|e| plot_err(path, e))?;
     // Principal offsets as arrows (dashed when the verdict rejected them).
     let rejected = analysis.repetition.kind == crate::offsets::Repetition::NoRepetition;
     for (i, k) in principal_numbering(analysis) {
