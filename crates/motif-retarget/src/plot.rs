@@ -11,7 +11,8 @@
 //!   in blue, rejected ones grey) and the principal offsets as arrows from the origin labelled
 //!   `p0 …` (numbered by model axis, as `--steps` counts them) and their support; when every
 //!   offset lies along one axis (a fence), one profile of the counts along it instead
-//!   ([`line_axis`]);
+//!   ([`line_axis`]), and when they lie in one axis plane (a shelf, a facade), that plane's
+//!   projection alone, large, with the bar chart and text beside it ([`plane_axes`]);
 //! - a bar chart of the dominant offsets' support, principal ones highlighted, with the verdict and
 //!   the principal offsets in model units below.
 
@@ -131,9 +132,13 @@ fn wrap(text: &str, width: usize) -> Vec<String> {
 const PRINCIPAL_COLOURS: [RGBColor; 3] =
     [RGBColor(0, 110, 200), RGBColor(0, 150, 60), RGBColor(150, 60, 200)];
 
-/// Draws the offset picture of `analysis` to `path` (PNG, 1500 × 1000 pixels).
+/// Draws the offset picture of `analysis` to `path` (PNG, 1500 × 1000 pixels; 1500 × 820 when
+/// the offsets lie in one plane).
 pub fn plot_offsets(analysis: &OffsetAnalysis, title: &str, path: &Path) -> Result<()> {
-    render_png(path, (1500, 1000), |root| {
+    let line = line_axis(analysis);
+    let plane = if line.is_none() { plane_axes(analysis) } else { None };
+    let size = if plane.is_some() { (1500, 820) } else { (1500, 1000) };
+    render_png(path, size, |root| {
         let (top, bottom) = root.split_vertically(560);
         let h = analysis.bin_size;
         // Symmetric extent covering every bin and principal offset, at least 0.5.
@@ -151,14 +156,34 @@ pub fn plot_offsets(analysis: &OffsetAnalysis, title: &str, path: &Path) -> Resu
         let extent = extent * 1.05;
         // Offsets along one line (a fence, a row of columns): the three projections would show
         // that line twice and a dot, so one profile along it is drawn instead.
-        if let Some(a) = line_axis(analysis) {
+        if let Some(a) = line {
             draw_profile(&top, analysis, a, extent, path)?;
             return draw_summary(&bottom, analysis, title, path);
+        }
+        // Offsets in one plane (a shelf, a facade): the two projections across the plane would
+        // each show a line, so the plane alone is drawn, large, with the bars and the text beside.
+        if let Some((a, b)) = plane {
+            // 813 pixels high leaves a square of 730 pixels for the plot under the caption.
+            let (left, right) = root.split_horizontally(800);
+            let (square, _) = left.split_vertically(813);
+            let name = ["X", "Y", "Z"];
+            let flat = 3 - a - b;
+            let within = 100.0 * (1.0 - off_axis_shares(analysis)[flat]);
+            let within = if within > 99.95 { "all".to_string() } else { format!("{within:.1}%") };
+            let caption = format!(
+                "offsets on the {}{} plane ({within} within a bin of it; bin {}, log colour)",
+                name[a], name[b], analysis.bin_size
+            );
+            draw_projection(&square, analysis, a, b, &caption, extent, path)?;
+            let (bars, text) = right.split_vertically(430);
+            draw_bars(&bars, analysis, path)?;
+            return draw_text(&text, analysis, title, path);
         }
         let panels = top.split_evenly((1, 3));
         let axes = [(0usize, 1usize, "XY"), (0, 2, "XZ"), (1, 2, "YZ")];
         for (panel, &(a, b, name)) in panels.iter().zip(axes.iter()) {
-            draw_projection(panel, analysis, a, b, name, extent, path)?;
+            let caption = format!("offsets projected on {name} (bin {}, log colour)", analysis.bin_size);
+            draw_projection(panel, analysis, a, b, &caption, extent, path)?;
         }
         draw_summary(&bottom, analysis, title, path)
     })
@@ -208,29 +233,65 @@ fn shaft<C: Clone>(
     plotters::element::DashedPathElement::new(points, dash, 6, colour.stroke_width(3))
 }
 
-/// The axis the offsets lie along when all but 2% of their mass has bin index 0 on
-/// both other axes, and every principal offset runs along it (within half a bin); `None`
-/// otherwise.
+/// The axis the offsets lie along when all but 2% of their mass lies within one bin of it on
+/// both other axes, and every principal offset runs along it (as close); `None` otherwise.
 pub fn line_axis(analysis: &OffsetAnalysis) -> Option<usize> {
-    let total: f64 = analysis.histogram.iter().map(|b| b.count as f64).sum();
-    if total <= 0.0 {
-        return None;
-    }
-    let off =
-        |k: usize| analysis.histogram.iter().filter(|b| b.index[k] != 0).map(|b| b.count as f64).sum::<f64>();
-    let flat: Vec<bool> = (0..3).map(|k| off(k) <= LINE_SPREAD * total).collect();
+    let flat = flat_axes(analysis)?;
     let a = (0..3).find(|&k| !flat[k])?;
     let along = (0..3).filter(|&k| k != a).all(|k| flat[k]);
-    let principal_along = analysis
-        .principal
-        .iter()
-        .all(|p| (0..3).filter(|&k| k != a).all(|k| p.offset[k].abs() < 0.5 * analysis.bin_size));
-    (along && principal_along).then_some(a)
+    (along && principal_within(analysis, &flat)).then_some(a)
 }
 
-/// Share of the offsets that may lie off the line for [`line_axis`] to call it one (the
-/// generated fence: 0.2% of its offsets have a bin off its length).
-const LINE_SPREAD: f64 = 0.02;
+/// The two axes of the plane the offsets lie in (in axis order) when all but 2% of their mass
+/// lies within one bin of it on the third axis, the offsets do not also lie along a line
+/// ([`line_axis`]), and every principal offset lies in the plane (as close); `None` otherwise.
+/// Off the plane of their cells: the generated shelf 0.35% (14% one bin off, its depth), the
+/// facade 0%, the OpenSCAD fence 0% across and 18% along its posts' height (drawn as the XZ
+/// plane); the gridbeam shelf, heat sink, cheese and Kiva pod are not flat on any axis.
+pub fn plane_axes(analysis: &OffsetAnalysis) -> Option<(usize, usize)> {
+    let flat = flat_axes(analysis)?;
+    if flat.iter().filter(|&&f| f).count() != 1 || !principal_within(analysis, &flat) {
+        return None;
+    }
+    let mut free = (0..3).filter(|&k| !flat[k]);
+    Some((free.next()?, free.next()?))
+}
+
+/// Per axis, the share of the offsets' mass more than one bin off 0 along that axis (bin
+/// index 2 or more away; all zeros for an empty histogram).
+fn off_axis_shares(analysis: &OffsetAnalysis) -> [f64; 3] {
+    let total: f64 = analysis.histogram.iter().map(|b| b.count as f64).sum();
+    if total <= 0.0 {
+        return [0.0; 3];
+    }
+    [0, 1, 2].map(|k| {
+        analysis.histogram.iter().filter(|b| b.index[k].abs() >= 2).map(|b| b.count as f64).sum::<f64>()
+            / total
+    })
+}
+
+/// Which axes the offsets are flat along (all but [`FLAT_SPREAD`] of their mass within one bin
+/// of 0); `None` for an empty histogram.
+fn flat_axes(analysis: &OffsetAnalysis) -> Option<[bool; 3]> {
+    if analysis.histogram.iter().all(|b| b.count == 0) {
+        return None;
+    }
+    Some(off_axis_shares(analysis).map(|s| s <= FLAT_SPREAD))
+}
+
+/// Whether every principal offset is within 1.5 bins (the reach of bin index ±1) of 0 along
+/// each flat axis.
+fn principal_within(analysis: &OffsetAnalysis, flat: &[bool; 3]) -> bool {
+    analysis
+        .principal
+        .iter()
+        .all(|p| (0..3).filter(|&k| flat[k]).all(|k| p.offset[k].abs() < 1.5 * analysis.bin_size))
+}
+
+/// Share of the offsets that may lie off a line or plane for [`line_axis`] and [`plane_axes`]
+/// to call it one (the generated fence: none of its offsets is more than a bin off its length;
+/// the shelf 0.35% off its plane).
+const FLAT_SPREAD: f64 = 0.02;
 
 /// The histogram of offsets along axis `a` (counts per bin, summed over the other axes, log
 /// scale), with the τ band, the histogram peaks and the principal offsets: the picture for
@@ -335,7 +396,7 @@ fn draw_projection(
     analysis: &OffsetAnalysis,
     a: usize,
     b: usize,
-    name: &str,
+    caption: &str,
     extent: f64,
     path: &Path,
 ) -> Result<()> {
@@ -352,7 +413,7 @@ fn draw_projection(
     }
     let max = cells.values().copied().fold(1.0, f64::max);
     let mut chart = ChartBuilder::on(area)
-        .caption(format!("offsets projected on {name} (bin {h}, log colour)"), (FONT, 18).into_font())
+        .caption(caption, (FONT, 18).into_font())
         .margin(12)
         .x_label_area_size(36)
         .y_label_area_size(46)
@@ -396,6 +457,9 @@ fn draw_projection(
     chart.draw_series(labels).map_err(|e| plot_err(path, e))?;
     // Principal offsets as arrows (dashed when the verdict rejected them).
     let rejected = analysis.repetition.kind == crate::offsets::Repetition::NoRepetition;
+    // Label boxes placed so far ([x0, y0, x1, y1] in chart units), so that no label covers
+    // another (the shelf's p1 label, left of its arrow, covered the start of p0's above its).
+    let mut placed: Vec<[f64; 4]> = Vec::new();
     for (i, k) in principal_numbering(analysis) {
         let p = &analysis.principal[k];
         let colour = principal_colour(analysis, i);
@@ -420,7 +484,8 @@ fn draw_projection(
             .draw_series(std::iter::once(Polygon::new(vec![(x, y), left, right], colour.filled())))
             .map_err(|e| plot_err(path, e))?;
         // The label beside the arrow's middle, on its left (between the origin and the first
-        // peak, where no peak circle is), on a white ground so that bins do not strike through.
+        // peak, where no peak circle is), on a white ground so that bins do not strike through;
+        // further along the arrow, or on its right, where that box would cover an earlier label.
         let label = format!("p{i}{} ({})", if rejected { " rejected" } else { "" }, p.support);
         let (pw, ph) = chart.plotting_area().dim_in_pixel();
         let per_px = (2.0 * extent / pw as f64, 2.0 * extent / ph as f64);
@@ -428,19 +493,29 @@ fn draw_projection(
             motif_core::plotting::text_width(&label, 15.0, plotters::style::FontStyle::Bold) * per_px.0,
             16.0 * per_px.1,
         );
-        // Left of the arrow's direction, far enough that the box clears the shaft.
-        let (nx, ny) = (-uy, ux);
-        let (mx, my) = (
-            0.5 * x + nx * (0.03 * extent + 0.5 * tw.max(th) * nx.abs()),
-            0.5 * y + ny * (0.03 * extent + 0.5 * th),
-        );
-        let (lx, ly) = (mx - 0.5 * tw, my + 0.5 * th);
+        let pad = (3.0 * per_px.0, 2.0 * per_px.1);
+        let candidate = |t: f64, side: f64| {
+            // `side` 1: left of the arrow's direction, far enough that the box clears the shaft.
+            let (nx, ny) = (-uy * side, ux * side);
+            let (mx, my) = (
+                t * x + nx * (0.03 * extent + 0.5 * tw.max(th) * nx.abs()),
+                t * y + ny * (0.03 * extent + 0.5 * th),
+            );
+            [mx - 0.5 * tw - pad.0, my - 0.5 * th - pad.1, mx + 0.5 * tw + pad.0, my + 0.5 * th + pad.1]
+        };
+        let overlaps =
+            |r: &[f64; 4]| placed.iter().any(|q| r[0] < q[2] && q[0] < r[2] && r[1] < q[3] && q[1] < r[3]);
+        let spots = [(0.5, 1.0), (0.75, 1.0), (0.5, -1.0), (0.75, -1.0), (0.25, 1.0), (0.25, -1.0)];
+        let chosen = spots
+            .iter()
+            .map(|&(t, side)| candidate(t, side))
+            .find(|r| !overlaps(r))
+            .unwrap_or(candidate(0.5, 1.0));
+        placed.push(chosen);
+        let (lx, ly) = (chosen[0] + pad.0, chosen[3] - pad.1);
         chart
             .draw_series(std::iter::once(Rectangle::new(
-                [
-                    (lx - 3.0 * per_px.0, ly + 2.0 * per_px.1),
-                    (lx + tw + 3.0 * per_px.0, ly - th - 2.0 * per_px.1),
-                ],
+                [(chosen[0], chosen[3]), (chosen[2], chosen[1])],
                 RGBColor(255, 255, 255).filled(),
             )))
             .map_err(|e| plot_err(path, e))?;
@@ -455,6 +530,8 @@ fn draw_projection(
     Ok(())
 }
 
+/// The bar chart of the dominant offsets' support (left) and the verdict with the principal
+/// offsets in model units (right), side by side in `area`.
 fn draw_summary(
     area: &DrawingArea<TextFix<BitMapBackend<'_>>, Shift>,
     analysis: &OffsetAnalysis,
@@ -462,10 +539,20 @@ fn draw_summary(
     path: &Path,
 ) -> Result<()> {
     let (bars, text) = area.split_horizontally(820);
+    draw_bars(&bars, analysis, path)?;
+    draw_text(&text, analysis, title, path)
+}
+
+/// The bar chart of the dominant offsets' support, principal ones highlighted and rejected ones
+/// marked with the reason.
+fn draw_bars(
+    bars: &DrawingArea<TextFix<BitMapBackend<'_>>, Shift>,
+    analysis: &OffsetAnalysis,
+    path: &Path,
+) -> Result<()> {
     let n = analysis.dominant.len().max(1);
     let max = analysis.dominant.iter().map(|d| d.peak.support).max().unwrap_or(1).max(1) as f64;
-    let total = analysis.counts.offsets.max(1) as f64;
-    let mut chart = ChartBuilder::on(&bars)
+    let mut chart = ChartBuilder::on(bars)
         .caption("support of the dominant offsets (histogram peaks, strongest first)", (FONT, 18).into_font())
         .margin(14)
         .x_label_area_size(40)
@@ -520,7 +607,17 @@ fn draw_summary(
         }
     }
 
-    // Text panel.
+    Ok(())
+}
+
+/// The verdict, the principal offsets in model units, how to read the picture and the timings.
+fn draw_text(
+    text: &DrawingArea<TextFix<BitMapBackend<'_>>, Shift>,
+    analysis: &OffsetAnalysis,
+    title: &str,
+    path: &Path,
+) -> Result<()> {
+    let total = analysis.counts.offsets.max(1) as f64;
     let font = |s: u32| (FONT, s).into_font();
     let mut lines: Vec<(String, u32, RGBColor)> = vec![(title.to_string(), 20, BLACK)];
     let rep = &analysis.repetition;

@@ -209,13 +209,27 @@ fn the_offset_picture_is_written() {
     let bytes = std::fs::read(&path).expect("png written");
     assert!(bytes.starts_with(b"\x89PNG"));
     let _ = std::fs::remove_file(&path);
-    // A shelf's offsets span its plane; a fence's lie along its length (x), which the picture
-    // then draws as one profile instead of three projections.
+    // A shelf's offsets span its plane (XY), which the picture then draws alone, large (1500 ×
+    // 820); a fence's lie along its length (x), drawn as one profile (1500 × 1000).
+    let height = |bytes: &[u8]| u32::from_be_bytes([bytes[20], bytes[21], bytes[22], bytes[23]]);
     assert_eq!(motif_retarget::plot::line_axis(&a), None);
+    assert_eq!(motif_retarget::plot::plane_axes(&a), Some((0, 1)));
+    assert_eq!(height(&bytes), 820);
     let fence = analyze(&generate("fence", 0).expect("example").mesh);
     assert_eq!(motif_retarget::plot::line_axis(&fence), Some(0));
+    assert_eq!(motif_retarget::plot::plane_axes(&fence), None);
     motif_retarget::plot::plot_offsets(&fence, "fence", &path).expect("plot");
-    assert!(std::fs::read(&path).expect("png written").starts_with(b"\x89PNG"));
+    let bytes = std::fs::read(&path).expect("png written");
+    assert!(bytes.starts_with(b"\x89PNG"));
+    assert_eq!(height(&bytes), 1000);
+    // 5% of the offsets three bins off the shelf's plane: no longer a plane, three projections.
+    let mut thick = a.clone();
+    let total: u32 = thick.histogram.iter().map(|b| b.count).sum();
+    thick.histogram.push(motif_retarget::offsets::HistogramBin { index: [0, 0, 3], count: total / 19 });
+    assert_eq!(motif_retarget::plot::plane_axes(&thick), None);
+    assert_eq!(motif_retarget::plot::line_axis(&thick), None);
+    motif_retarget::plot::plot_offsets(&thick, "thick", &path).expect("plot");
+    assert_eq!(height(&std::fs::read(&path).expect("png written")), 1000);
     let _ = std::fs::remove_file(&path);
 }
 
