@@ -407,6 +407,45 @@ pub struct ResolvedAnnotation {
     pub(crate) num_symbols: usize,
 }
 
+/// `annotation` with each region given by place (a box, a sphere, or a union holding one)
+/// replaced by the vertices of `mesh` it selects (with the margin every region gets), so that
+/// it selects the same vertices once `mesh` is deformed: a symmetry-preserving deformation keeps
+/// every transform exact, but moves the places (a windmill's blade leaves the box that held it,
+/// and a deformed model saved with its rest annotation could not be opened with it again).
+/// Regions given by vertices, faces or as the whole shape are kept as they are.
+///
+/// # Errors
+/// As [`resolve_annotation`] for regions that are not valid on `mesh`.
+pub fn regions_as_vertices(annotation: &SymmetryAnnotation, mesh: &TriMesh) -> Result<SymmetryAnnotation> {
+    let diagonal = check_mesh(mesh)?;
+    let margin = REGION_MARGIN * diagonal;
+    let pin = |region: &Region, what: &str| -> Result<Region> {
+        if matches!(region, Region::All | Region::Vertices(_) | Region::Faces(_)) {
+            return Ok(region.clone());
+        }
+        let test = RegionTest::compile(region, mesh, margin, what)?;
+        Ok(Region::Vertices(
+            (0..mesh.num_vertices())
+                .filter(|&v| test.contains_vertex(v, mesh.positions[v]))
+                .map(|v| v as u32)
+                .collect(),
+        ))
+    };
+    let mut out = annotation.clone();
+    for s in &mut out.symmetries {
+        let what = format!("symmetry \"{}\"", s.name);
+        match &mut s.kind {
+            SymmetryKind::Group { region, .. } => *region = pin(region, &what)?,
+            SymmetryKind::Instances { instances } => {
+                for i in instances {
+                    i.region = pin(&i.region, &what)?;
+                }
+            }
+        }
+    }
+    Ok(out)
+}
+
 /// Resolves `annotation` on `mesh`: closes groups, compiles and checks regions (no empty region,
 /// indices in range, rigid transforms). Does not measure how well the transforms fit the shape:
 /// see [`crate::check_annotation`] and [`crate::SymmetryMaps`].

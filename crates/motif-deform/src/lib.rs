@@ -56,7 +56,7 @@ pub mod symmetric_sampling;
 
 pub use annotation::{
     ResolvedAnnotation, ResolvedKind, ResolvedRegion, ResolvedSymmetry, SymmetryElement, group_closure,
-    parse_annotation, read_annotation, resolve_annotation,
+    parse_annotation, read_annotation, regions_as_vertices, resolve_annotation,
 };
 pub use basis::SymmetricBasis;
 pub use editing::EditingOptions;

@@ -98,6 +98,45 @@ fn symmetry_is_exact_on_every_symmetric_example() {
     }
 }
 
+/// A deformed model saved with its annotation must open with it again: the rest annotation's
+/// boxes no longer hold the moved blades of a deformed windmill, its regions as vertices do,
+/// and they select the same vertices, on which the symmetries are still exact.
+#[test]
+fn an_annotation_pinned_to_vertices_fits_the_deformed_model() {
+    let (mesh, ann, mut s) = session("windmill", SymmetryMode::Preserve);
+    let (handles, transforms) = random_edit(&mesh, 3);
+    s.set_handles(&handles).unwrap();
+    let deformed =
+        TriMesh { positions: s.solve(&transforms).unwrap().to_vec(), triangles: mesh.triangles.clone() };
+    let pinned = motif_deform::regions_as_vertices(&ann, &mesh).unwrap();
+    assert_eq!(pinned.symmetries.len(), ann.symmetries.len());
+    let regions = |a: &SymmetryAnnotation, m: &TriMesh| -> Option<Vec<Vec<u32>>> {
+        let r = motif_deform::resolve_annotation(m, a).ok()?;
+        Some(
+            r.symmetries
+                .iter()
+                .flat_map(|s| match &s.kind {
+                    motif_deform::ResolvedKind::Group { region, .. } => vec![region.vertices.clone()],
+                    motif_deform::ResolvedKind::Instances { instances, .. } => {
+                        instances.iter().map(|i| i.vertices.clone()).collect()
+                    }
+                })
+                .collect(),
+        )
+    };
+    let on_rest = regions(&ann, &mesh).expect("the annotation fits the rest shape");
+    assert_eq!(regions(&pinned, &mesh).as_ref(), Some(&on_rest), "pinned regions select the same vertices");
+    assert_eq!(regions(&pinned, &deformed).as_ref(), Some(&on_rest), "... also on the deformed shape");
+    // The rest annotation's places no longer select those vertices on the deformed shape.
+    assert_ne!(
+        regions(&ann, &deformed).as_ref(),
+        Some(&on_rest),
+        "the edit should move a blade out of its box"
+    );
+    let r = symmetry_residual(&deformed, &deformed.positions, &pinned).unwrap();
+    assert!(r.max <= 1e-9, "residual {:.2e}", r.max);
+}
+
 #[test]
 fn ignoring_symmetry_breaks_it() {
     for name in ["fan", "windmill", "chair", "shelf", "fence"] {

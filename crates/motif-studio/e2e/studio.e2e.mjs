@@ -149,6 +149,19 @@ try {
   check(selected === 0 && afterDelete === st.undo + 1 && back < 1e-4,
     `a click on a handle selects it (${selected}), Delete removes it, Ctrl+Z brings it back with the drag (max distance ${back.toExponential(1)})`);
 
+  // 1e. Leaving the page with a deformation asks first; so does detecting symmetry (a new
+  // deformation from the undeformed model), and "no" keeps the deformation.
+  const leaveAsks = () => page.evaluate(() => { const e = new Event('beforeunload', { cancelable: true }); window.dispatchEvent(e); return e.defaultPrevented; });
+  check(await leaveAsks(), 'leaving the page with a deformation asks first');
+  let asked = null;
+  page.once('dialog', (d) => { asked = d.message(); d.dismiss(); });
+  await page.click('#detect-symmetry');
+  await page.waitForTimeout(300);
+  st = await page.evaluate(() => window.motif.state);
+  const keptAfterNo = maxDiff(await page.evaluate(() => window.motif.positions()), dragged);
+  check(asked && /discarded/.test(asked) && st.busy === null && st.handles === 2 && keptAfterNo < 1e-4,
+    `detecting symmetry on a deformed model asks first ("${asked && asked.split('\n')[0]}"); "no" keeps the deformation (max distance ${keptAfterNo.toExponential(1)})`);
+
   // 2. Export the deformed windmill with its annotation: written under the root and downloaded
   // by the browser; the download loads back through the file picker; the export opens again.
   await page.fill('#export-path', 'windmill-deformed.obj');
@@ -175,6 +188,14 @@ try {
   st = await until(page, (s, n) => s.saved.length > n && s.busy === null, savedBefore);
   check(st.saved.slice(savedBefore).includes('windmill-deformed.obj'), `with "replace existing files" ticked the export is written again: ${st.saved.slice(savedBefore).join(', ')}`);
   await page.uncheck('#overwrite');
+  // 2b. "Yes" discards the deformation: the page shows the undeformed model, as the server
+  // (and so an export) now holds it, and the old handles leave the undo history.
+  page.once('dialog', (d) => d.accept());
+  await page.click('#detect-symmetry');
+  st = await until(page, (s) => s.busy === null && s.handles === 0 && s.annotation && s.annotation.maxResidual !== null);
+  const restAgain = maxDiff(await page.evaluate(() => window.motif.positions()), rest);
+  check(restAgain < 1e-6 && st.undo === 0 && !(await leaveAsks()),
+    `after "yes" the page shows the undeformed windmill (max distance ${restAgain.toExponential(1)}), undo ${st.undo}, leaving no longer asks`);
   await page.setInputFiles('#upload', savedAs);
   st = await until(page, (s) => s.name === 'download-windmill-deformed.obj' && s.meshVersion > 0);
   const uploaded = maxDiff(await page.evaluate(() => window.motif.positions()), dragged);
@@ -192,20 +213,41 @@ try {
   st = await until(page, (s) => s.name === 'shelf');
   await page.click('#find-offsets');
   st = await until(page, (s) => s.offsets !== null);
+  // Export before any resize says so (it used to say the default name "already exists").
+  const errorsBefore3 = st.errors.length;
+  await page.click('#export-resized');
+  st = await until(page, (s, n) => s.errors.length > n && s.busy === null, errorsBefore3);
+  check(/nothing resized yet/.test(st.errors[st.errors.length - 1]), `exporting before a resize: ${st.errors[st.errors.length - 1]}`);
   check(st.offsets.principal === 2 && st.totalCells === 12, `shelf: ${st.offsets.principal} principal offsets, cells ${st.cells.join(' x ')}`);
   await page.$eval('#step-0', (el) => { el.value = '1'; el.dispatchEvent(new Event('input')); });
   st = await until(page, (s) => s.retargetVersion > 0);
   check(st.totalCells === 15 && st.cells[0] === 5, `one step along offset 0: cells ${st.cells.join(' x ')} = ${st.totalCells}`);
   await shot('04-shelf-resized.png');
+  // The sliders stop at the fewest cells a resize keeps (the server's bound), and that step
+  // resizes without an error.
+  const min1 = await page.$eval('#step-1', (el) => Number(el.min));
+  const v3 = st.retargetVersion, e3 = st.errors.length;
+  await page.$eval('#step-1', (el) => { el.value = el.min; el.dispatchEvent(new Event('input')); });
+  st = await until(page, (s, v) => s.retargetVersion > v, v3);
+  check(min1 < 0 && min1 === st.offsets.minSteps[1] && st.errors.length === e3 && st.cells[1] >= 1,
+    `offset 1's slider starts at ${min1} steps, which resizes to ${st.cells.join(' x ')} cells without an error`);
+  check(await leaveAsks(), 'leaving the page with a resized model asks first');
+  // Detections of another scan shown on the shelf come with a warning.
+  await page.fill('#detections-path', 'RESULT.json');
+  await page.click('#load-detections');
+  st = await until(page, (s) => s.detections !== null && s.busy === null);
+  check(st.detections.otherScene && /not on shelf/.test(st.errors[st.errors.length - 1]), `detections of another scan are shown with a warning: ${st.errors[st.errors.length - 1]}`);
 
   // 4. Facade scan with detections from a RESULT.json.
   await page.fill('#open-path', 'facade_scan.ply');
   await page.click('#open-btn');
-  st = await until(page, (s) => s.name === 'facade_scan.ply');
+  st = await until(page, (s) => s.name === 'facade_scan.ply' && s.busy === null);
+  const meshOnly = await page.evaluate(() => ['find-offsets', 'export', 'undo'].map((id) => document.getElementById(id).disabled));
+  check(meshOnly.every((d) => d), `a point cloud leaves the mesh-only buttons off (Find offsets, Export, Undo: ${meshOnly})`);
   await page.fill('#detections-path', 'RESULT.json');
   await page.click('#load-detections');
   st = await until(page, (s) => s.detections !== null);
-  check(st.detections.classes === structure.instances.length && st.detections.coloured > 0,
+  check(st.detections.classes === structure.instances.length && st.detections.coloured > 0 && !st.detections.otherScene,
     `detections shown: ${st.detections.classes} classes, ${st.detections.instances} boxes, ${st.detections.coloured} coloured points`);
   await shot('05-facade-detections.png');
 
@@ -236,7 +278,11 @@ try {
   // 5. Symmetry detection on the fan, shown as planes and axes.
   await page.selectOption('#example-select', 'fan');
   await page.click('#example-open');
-  await until(page, (s) => s.name === 'fan');
+  st = await until(page, (s) => s.name === 'fan' && s.symmetryCentre);
+  // Its planes and axes are placed about the fan's own centre (they used the previous model's,
+  // the facade scan's, while the fan's geometry was on its way).
+  const fanCentre = st.bbox[0].map((v, k) => (v + st.bbox[1][k]) / 2);
+  check(maxDiff(st.symmetryCentre, fanCentre) < 1e-9, `the fan's symmetry elements are drawn about its own centre (${st.symmetryCentre.map((v) => v.toFixed(3))})`);
   await page.click('#show-symmetry'); // hide the generator's own annotation ...
   await page.click('#show-symmetry'); // ... and show again: the checkbox works both ways
   await page.click('#detect-symmetry');

@@ -343,6 +343,9 @@ pub enum ServerMessage {
         principal: Vec<Point3>,
         /// Whole cells of the input along each principal offset.
         cells: Vec<usize>,
+        /// The most negative steps a resize accepts along each principal offset
+        /// (`RetargetSession::min_steps`), so the page's sliders stop there.
+        min_steps: Vec<i32>,
         /// The repetition verdict in words.
         summary: String,
         /// Milliseconds spent (analysis and retargeting precomputation).

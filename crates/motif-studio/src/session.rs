@@ -678,6 +678,13 @@ pub fn export(
 ) -> Result<Vec<Out>> {
     let s = lock(shared);
     let loaded = s.loaded()?;
+    // Nothing to export says so before the file name is looked at (it used to say the default
+    // name "already exists").
+    if source == ExportSource::Retargeted && s.retarget.as_ref().and_then(|r| r.last.as_ref()).is_none() {
+        return Err(StudioError::NotReady(
+            "nothing resized yet: move a slider under Resize first (after Find offsets)".to_string(),
+        ));
+    }
     let writes = writes_lock();
     let file = s.sandbox.resolve_write(path, &s.inputs)?;
     check_fresh(&file, path, overwrite)?;
@@ -685,6 +692,7 @@ pub fn export(
     let mut written = Vec::new();
     match source {
         ExportSource::Deformed => {
+            let deformed = matches!((&s.deform, &loaded.mesh), (Some(d), Some(_)) if d.solved);
             let model = match (&s.deform, &loaded.mesh) {
                 (Some(d), Some(mesh)) if d.solved => Model::from_mesh(&TriMesh {
                     positions: d.session.positions().to_vec(),
@@ -692,12 +700,19 @@ pub fn export(
                 }),
                 _ => loaded.model.clone(),
             };
+            // A deformed model's annotation names its regions by the vertices they hold on the
+            // rest shape: its boxes and spheres no longer hold the moved parts, and the export
+            // could not be opened with its annotation again.
+            let annotation = match (s.annotation.as_ref().filter(|_| model.is_mesh()), &loaded.mesh) {
+                (Some(a), Some(rest)) if deformed => Some(motif_deform::regions_as_vertices(a, rest)?),
+                (a, _) => a.cloned(),
+            };
             // The annotation goes beside the model as STEM.sym.json. Its path is checked before
             // anything is written, so that a refused annotation leaves no model behind. When that
             // file already holds the same annotation (the annotation this session read, or the
             // model exported to another format beside it), it is kept as it is.
             let mut side_to_write = None;
-            if let Some(a) = s.annotation.as_ref().filter(|_| model.is_mesh()) {
+            if let Some(a) = annotation.as_ref() {
                 let side_text = file.with_extension("sym.json").display().to_string();
                 match s.sandbox.resolve_write(&side_text, &s.inputs) {
                     // A file there that already holds this annotation (the model exported to
@@ -735,7 +750,7 @@ pub fn export(
                 .retarget
                 .as_ref()
                 .and_then(|r| r.last.as_ref())
-                .ok_or_else(|| StudioError::NotReady("nothing retargeted yet".to_string()))?;
+                .ok_or_else(|| StudioError::NotReady("nothing resized yet".to_string()))?;
             motif_core::io::write(&file, &Model::from_mesh(mesh), &WriteOptions::default())?;
             written.push(s.sandbox.display(&file));
         }
@@ -797,6 +812,7 @@ pub fn offsets(shared: &Shared, p: &JobProgress) -> Result<Vec<Out>> {
         return Ok(vec![Out::Text(ServerMessage::Offsets {
             principal: Vec::new(),
             cells: Vec::new(),
+            min_steps: Vec::new(),
             summary,
             ms: ms_since(t),
         })]);
@@ -804,11 +820,12 @@ pub fn offsets(shared: &Shared, p: &JobProgress) -> Result<Vec<Out>> {
     let options = RetargetOptions { seed, ..Default::default() };
     let session = RetargetSession::with_features(mesh, &features, &principal, &options, p)?;
     let cells = cells_along(mesh, &principal);
+    let min_steps = session.min_steps()[..principal.len().min(3)].to_vec();
     p.check();
     let input_boundary = mesh.edge_stats().boundary;
     lock(shared).retarget =
         Some(RetargetState { session, principal: principal.clone(), last: None, input_boundary });
-    Ok(vec![Out::Text(ServerMessage::Offsets { principal, cells, summary, ms: ms_since(t) })])
+    Ok(vec![Out::Text(ServerMessage::Offsets { principal, cells, min_steps, summary, ms: ms_since(t) })])
 }
 
 /// Resizes by `steps` principal offsets.

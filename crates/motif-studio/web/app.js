@@ -122,13 +122,28 @@ function send(m) {
   if (ws && ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify(m));
 }
 function message(text, isError = false) {
-  const div = document.createElement('div');
-  div.textContent = text;
-  if (isError) { div.className = 'error'; state.errors.push(text); }
+  if (isError) state.errors.push(text);
   const box = $('messages');
-  box.prepend(div);
-  while (box.children.length > 6) box.lastChild.remove();
+  // The same message again counts up on the newest line instead of stacking copies.
+  const top = box.firstChild;
+  if (top && top.dataset.text === text) {
+    top.dataset.count = String(Number(top.dataset.count || 1) + 1);
+    top.textContent = `${text} (×${top.dataset.count})`;
+  } else {
+    const div = document.createElement('div');
+    div.textContent = text;
+    div.dataset.text = text;
+    if (isError) div.className = 'error';
+    box.prepend(div);
+    while (box.children.length > 6) box.lastChild.remove();
+  }
+  box.scrollTop = 0;
 }
+// Errors that a newly opened model makes moot ("open a model first") leave the list.
+function clearErrors() { for (const d of [...$('messages').querySelectorAll('.error')]) d.remove(); }
+// Shows a result or warning that may sit below the fold of a short window (1280 × 800 hid the
+// resize warning under the progress panel).
+function reveal(el) { if (el && !el.hidden && el.scrollIntoView) el.scrollIntoView({ block: 'nearest' }); }
 // What the progress line calls each job (the protocol's names are for programs).
 const JOB_NAMES = {
   detect: 'detecting building blocks', detect_symmetry: 'detecting symmetry', example: 'generating the example',
@@ -142,11 +157,17 @@ function setBusy(job) {
   $('cancel').disabled = !job;
   // One job at a time: the other buttons wait for it (a second request used to queue silently
   // and then drop the first one's result).
-  for (const b of document.querySelectorAll('#side button')) if (b.id !== 'cancel') b.disabled = !!job;
+  for (const b of document.querySelectorAll('#side button')) if (b.id !== 'cancel') b.disabled = !!job || (MESH_ONLY.has(b.id) && !state.isMesh);
   $('progress').textContent = job ? `${jobName(job)}…` : '';
 }
+// Deforming and resizing need a triangle mesh: their buttons wait for one (a point cloud, or no
+// model yet, leaves them off rather than failing when clicked).
+const MESH_ONLY = new Set(['undo', 'redo', 'reset', 'delete-handle', 'export', 'find-offsets', 'export-resized']);
 
 function onText(m) {
+  // A request that succeeds makes the errors before it moot ("open a model first", "nothing
+  // resized yet"): they leave the list (state.errors keeps them).
+  if (['model', 'annotation', 'saved', 'offsets', 'retargeted', 'detections'].includes(m.type)) clearErrors();
   switch (m.type) {
     case 'hello':
       $('example-select').replaceChildren(...m.examples.map((n) => new Option(n, n)));
@@ -182,6 +203,8 @@ function onText(m) {
       if (m.request === 'drag') { inFlight = false; requestRender(); }
       if (m.request !== 'drag' && m.request !== 'release' && m.request !== 'retarget') setBusy(null);
       message(m.message, true);
+      // The tick box the message asks for may be below the fold.
+      if (/already exists/.test(m.message)) reveal($('files'));
       if (m.request === 'set_handles') handlesFailed();
       if (m.request === 'retarget') restoreSteps();
       break;
@@ -221,16 +244,21 @@ function onFile(name, bytes) {
 // ---------------------------------------------------------------------------------------------
 // View
 function onModel(m) {
-  setBusy(null);
   Object.assign(state, { name: m.name, vertices: m.vertices, triangles: m.triangles, isMesh: m.triangles > 0, bbox: m.bbox, diagonal: m.diagonal,
-    symmetryResidual: null, restResidual: null, handles: 0, offsets: null, cells: null, totalCells: null, detections: null, maxDisplacement: 0 });
+    symmetryResidual: null, restResidual: null, handles: 0, offsets: null, cells: null, totalCells: null, detections: null, maxDisplacement: 0, symmetryCentre: null, annotation: null });
   // Frame times are per model: a median carried over from a small model says nothing of a large one.
   state.frameTimes = []; state.medianFrameMs = null; state.lastFrameMs = null;
+  setBusy(null);
+  $('start-hint').hidden = true;
   const [lo, hi] = m.bbox;
   const size = hi.map((v, k) => v - lo[k]);
   $('model-info').textContent = `${m.name}\n${m.vertices} ${m.triangles ? 'vertices' : 'points'}, ${m.triangles} triangles\n` +
     `size ${size.map((v) => v.toPrecision(3)).join(' × ')} (diagonal ${m.diagonal.toPrecision(3)})` +
     (m.warnings.length ? `\n${m.warnings.join('\n')}` : '');
+  if (!state.isMesh) $('model-info').textContent += '\na point cloud: Deform and Resize need a triangle mesh';
+  // Export names follow the model (they kept the previous model's).
+  $('export-path').value = `${stem()}-edited.${$('export-format').value}`;
+  $('export-resized-path').value = `${stem()}-resized.obj`;
   handles = []; undoStack = []; redoStack = []; updateUndo();
   inFlight = wantFrame = handlesPending = undoOnHandles = releaseWanted = false; sentAt.clear();
   clearGroup(overlays.detections); clearGroup(overlays.offsets); clearGroup(overlays.symmetry); clearGroup(overlays.handles);
@@ -393,7 +421,12 @@ function classify(m) {
 function onAnnotation(m) {
   clearGroup(overlays.symmetry);
   const a = m.annotation;
-  const center = geometry ? geometry.boundingSphere.center : new THREE.Vector3();
+  // The centre of the model the annotation belongs to: its box arrives with it (the geometry
+  // may still be the previous model's, whose centre misplaced the planes and axes).
+  const center = state.bbox
+    ? new THREE.Vector3(...state.bbox[0]).add(new THREE.Vector3(...state.bbox[1])).multiplyScalar(0.5)
+    : new THREE.Vector3();
+  state.symmetryCentre = center.toArray();
   const size = state.diagonal || 1;
   let mirrors = 0, axes = 0, instanceSets = 0;
   for (const s of a.symmetries) {
@@ -403,7 +436,8 @@ function onAnnotation(m) {
       if (el.kind === 'mirror') {
         mirrors++;
         const plane = new THREE.Mesh(new THREE.PlaneGeometry(size * 0.8, size * 0.8),
-          new THREE.MeshBasicMaterial({ color: 0x3b82f6, transparent: true, opacity: 0.16, side: THREE.DoubleSide, depthWrite: false }));
+          new THREE.MeshBasicMaterial({ color: 0x3b82f6, transparent: true, opacity: 0.09, side: THREE.DoubleSide, depthWrite: false }));
+        plane.add(new THREE.LineSegments(new THREE.EdgesGeometry(plane.geometry), new THREE.LineBasicMaterial({ color: 0x3b82f6 })));
         const onPlane = center.clone().sub(el.normal.clone().multiplyScalar(center.clone().sub(el.point).dot(el.normal)));
         plane.position.copy(onPlane);
         plane.quaternion.setFromUnitVectors(new THREE.Vector3(0, 0, 1), el.normal);
@@ -420,19 +454,40 @@ function onAnnotation(m) {
   }
   state.annotation = { symmetries: a.symmetries.length, mirrors, axes, instanceSets, ok: m.ok, maxResidual: m.max_residual };
   const groups = m.groups.map((g) => `${g.schoenflies} (order ${g.order}), residual ${g.max_residual.toExponential(1)}`).join('\n');
-  $('symmetry-info').textContent = `${a.symmetries.length} symmetries: ${mirrors} mirror plane(s), ${axes} rotation axis(es)` +
+  const n = a.symmetries.length;
+  $('symmetry-info').textContent = (n ? `${n} ${n === 1 ? 'symmetry' : 'symmetries'}: ${mirrors} mirror plane(s), ${axes} rotation axis(es)` : 'no symmetry found') +
     (instanceSets ? `, ${instanceSets} instance set(s)` : '') + (groups ? `\n${groups}` : '') +
-    (m.max_residual != null ? `\nannotation residual ${m.max_residual.toExponential(2)} of the diagonal${m.ok ? '' : ' (does not fit!)'}` : '');
+    (m.max_residual != null && n ? `\nannotation residual ${m.max_residual.toExponential(2)} of the diagonal${m.ok ? '' : ' (does not fit!)'}` : '');
   overlays.symmetry.visible = $('show-symmetry').checked;
-  // A new annotation means a new deformation session on the server.
+  // A new annotation means a new deformation session on the server, from the rest shape: the
+  // page shows that shape too (it kept showing the deformed one, which an export no longer
+  // wrote), and the old handles leave the undo history with it.
   handles = []; clearGroup(overlays.handles); gizmo.detach(); state.handles = 0;
   inFlight = wantFrame = handlesPending = undoOnHandles = false; sentAt.clear();
+  undoStack = []; redoStack = []; updateUndo();
+  if (isDeformed()) { showRest(); $('deform-info').textContent = 'no handles (a new annotation starts from the undeformed model)'; }
   requestRender();
 }
+// Detecting or loading an annotation discards the deformation: only after the user agrees.
+function keepsDeformation(what) {
+  if (!isDeformed() && !handles.length) return true;
+  return window.confirm(`${what} starts a new deformation from the undeformed model: the current one (${handles.length} handle(s)) will be discarded. Export it first to keep it.\n\nDiscard it and continue?`);
+}
 $('show-symmetry').onchange = () => { overlays.symmetry.visible = $('show-symmetry').checked; requestRender(); };
-$('detect-symmetry').onclick = () => { setBusy('detect_symmetry'); send({ type: 'detect_symmetry' }); };
-$('load-annotation').onclick = () => { setBusy('load_annotation'); send({ type: 'load_annotation', path: $('annotation-path').value }); };
-$('save-annotation').onclick = () => { setBusy('save_annotation'); send({ type: 'save_annotation', path: $('annotation-path').value, overwrite: $('overwrite').checked }); };
+$('detect-symmetry').onclick = () => {
+  if (!keepsDeformation('Detecting symmetry')) return;
+  setBusy('detect_symmetry'); send({ type: 'detect_symmetry' });
+};
+$('load-annotation').onclick = () => {
+  if (!keepsDeformation('Loading an annotation')) return;
+  setBusy('load_annotation'); send({ type: 'load_annotation', path: $('annotation-path').value });
+};
+const stem = () => (state.name || 'model').replace(/^.*\//, '').replace(/\.[^.]*$/, '');
+$('save-annotation').onclick = () => {
+  // An empty field names the file after the model (STEM.sym.json), as saving detections does.
+  if (!$('annotation-path').value.trim()) $('annotation-path').value = `${stem()}.sym.json`;
+  setBusy('save_annotation'); send({ type: 'save_annotation', path: $('annotation-path').value, overwrite: $('overwrite').checked });
+};
 
 const palette = [0xe6194b, 0x3cb44b, 0x4363d8, 0xf58231, 0x911eb4, 0x42d4f4, 0xf032e6, 0x9a6324, 0x469990, 0x800000];
 function onDetections(m) {
@@ -454,9 +509,18 @@ function onDetections(m) {
       overlays.detections.add(new THREE.Box3Helper(new THREE.Box3(new THREE.Vector3(...lo), new THREE.Vector3(...hi)), palette[k % palette.length]));
     }
   });
-  state.detections = { scene: m.scene, classes: m.classes.length, instances, coloured: m.point_class.filter((k) => k >= 0).length };
+  // A result names the scan it was found on; shown on another model its boxes float anywhere.
+  const base = (p) => String(p || '').replace(/^.*[\\/]/, '');
+  const otherScene = !!m.scene && base(m.scene) !== base(state.name);
+  state.detections = { scene: m.scene, classes: m.classes.length, instances, coloured: m.point_class.filter((k) => k >= 0).length, otherScene };
   const info = $('detections-info');
   info.replaceChildren(document.createTextNode(`${m.scene}: ${m.classes.length} classes, ${instances} instances`));
+  if (otherScene) {
+    const warn = `these detections were made on ${base(m.scene)}, not on ${base(state.name)}: their boxes need not line up with this model`;
+    const w = document.createElement('div'); w.className = 'warn'; w.style.color = '#b3261e'; w.textContent = warn;
+    info.append(w);
+    message(warn, true);
+  }
   info.classList.add('legend');
   m.classes.forEach((cl, k) => {
     const d = document.createElement('div');
@@ -470,10 +534,15 @@ function onDetections(m) {
 }
 $('show-detections').onchange = () => { overlays.detections.visible = $('show-detections').checked && !isDeformed(); requestRender(); };
 $('load-detections').onclick = () => { setBusy('load_detections'); send({ type: 'load_detections', path: $('detections-path').value }); };
-$('detect').onclick = () => { setBusy('detect'); send({ type: 'detect' }); };
+$('detect').onclick = () => {
+  // The field may name the file the shown detections came from (a ground truth): Save after
+  // Detect must not offer to replace it, so it empties and Save names a new file.
+  $('detections-path').value = '';
+  setBusy('detect'); send({ type: 'detect' });
+};
 $('save-detections').onclick = () => {
   // An empty field names the file after the model (STEM.detect.json), as an export does.
-  if (!$('detections-path').value) $('detections-path').value = (state.name || 'model').replace(/^.*\//, '').replace(/\.[^.]*$/, '') + '.detect.json';
+  if (!$('detections-path').value.trim()) $('detections-path').value = `${stem()}.detect.json`;
   setBusy('save_detections');
   send({ type: 'save_detections', path: $('detections-path').value, overwrite: $('overwrite').checked });
 };
@@ -584,6 +653,10 @@ function showRest() {
 
 function pick(ev) {
   if (!object || !state.isMesh) return;
+  if (retargetObject && !object.visible) {
+    message('the resized model is not deformed here: export it and open the export to deform it (or tick "original" to place handles on the original)');
+    return;
+  }
   // While a job other than preparing the handles runs, the shape on screen may be about to be
   // replaced (a model opening, a resize): a handle placed now would belong to the old one.
   if (state.busy && state.busy !== 'set_handles') { message(`handles wait until ${jobName(state.busy)} is done`); return; }
@@ -787,8 +860,18 @@ $('redo').onclick = () => {
   updateUndo();
 };
 $('reset').onclick = () => { applySnapshot([]); pushUndo(); state.maxDisplacement = 0; $('deform-info').textContent = 'no handles'; };
-$('export-format').onchange = () => { $('export-path').value = $('export-path').value.replace(/\.[^.\/]*$/, '') + '.' + $('export-format').value; };
-$('export').onclick = () => { setBusy('export'); send({ type: 'export', path: $('export-path').value, source: 'deformed', download: true, overwrite: $('overwrite').checked }); };
+// The name's extension decides the format; the list follows it, and a name without one gets the
+// list's format.
+const extOf = (p) => { const m = /\.([^.\/]+)$/.exec(p.trim()); return m ? m[1].toLowerCase() : ''; };
+$('export-format').onchange = () => { $('export-path').value = $('export-path').value.trim().replace(/\.[^.\/]*$/, '') + '.' + $('export-format').value; };
+$('export-path').oninput = () => {
+  const e = extOf($('export-path').value);
+  if ([...$('export-format').options].some((o) => o.value === e)) $('export-format').value = e;
+};
+$('export').onclick = () => {
+  if (!extOf($('export-path').value) && $('export-path').value.trim()) $('export-path').value = `${$('export-path').value.trim()}.${$('export-format').value}`;
+  setBusy('export'); send({ type: 'export', path: $('export-path').value, source: 'deformed', download: true, overwrite: $('overwrite').checked });
+};
 
 // ---------------------------------------------------------------------------------------------
 // Resize
@@ -796,12 +879,12 @@ let retargetSeq = 0;
 // The steps of the resized model on screen: a size the server refuses puts the sliders back.
 let shownSteps = [0, 0, 0];
 function restoreSteps() {
-  shownSteps.forEach((v, k) => { if ($(`step-${k}`)) { $(`step-${k}`).value = v; $(`step-${k}-value`).textContent = v; } });
+  shownSteps.forEach((v, k) => { if ($(`step-${k}`)) { $(`step-${k}`).value = v; $(`step-${k}-value`).value = v; } });
 }
 function onOffsets(m) {
   shownSteps = [0, 0, 0];
   clearGroup(overlays.offsets);
-  state.offsets = { principal: m.principal.length, cells: m.cells, summary: m.summary };
+  state.offsets = { principal: m.principal.length, cells: m.cells, minSteps: m.min_steps, summary: m.summary };
   state.cells = m.cells; state.totalCells = m.cells.reduce((a, b) => a * b, 1);
   const steps = $('steps');
   steps.replaceChildren();
@@ -817,10 +900,22 @@ function onOffsets(m) {
     overlays.offsets.add(arrow);
     const row = document.createElement('div');
     row.className = 'row';
-    row.innerHTML = `<label>offset ${k} (${v.length().toPrecision(3)}) <input type="range" id="step-${k}" min="-3" max="6" step="1" value="0"><span id="step-${k}-value">0</span></label>`;
+    // From the fewest cells a resize keeps (the server's bound) to twice the model's cells, at
+    // least 6 and at most 64 (the server's limit); the number field takes any value in range.
+    const lo = (m.min_steps && m.min_steps[k] != null) ? m.min_steps[k] : -3;
+    const hi = Math.min(64, Math.max(6, 2 * (m.cells[k] || 0)));
+    row.innerHTML = `<label title="cells to add along this offset (negative removes)">offset ${k}: ${v.length().toPrecision(3)} units, ${m.cells[k]} cell(s) <input type="range" id="step-${k}" min="${lo}" max="${hi}" step="1" value="0"><input type="number" id="step-${k}-value" min="${lo}" max="${hi}" step="1" value="0" style="width:4em"></label>`;
     steps.append(row);
   });
-  m.principal.forEach((_, k) => { $(`step-${k}`).oninput = () => { $(`step-${k}-value`).textContent = $(`step-${k}`).value; sendRetarget(); }; });
+  m.principal.forEach((_, k) => {
+    $(`step-${k}`).oninput = () => { $(`step-${k}-value`).value = $(`step-${k}`).value; sendRetarget(); };
+    $(`step-${k}-value`).onchange = () => {
+      const f = $(`step-${k}-value`);
+      const v = Math.max(Number(f.min), Math.min(Number(f.max), Math.round(Number(f.value) || 0)));
+      f.value = v; $(`step-${k}`).value = v;
+      sendRetarget();
+    };
+  });
   $('resize-warning').hidden = true;
   $('resize-info').textContent = `${m.principal.length} principal offset(s); cells ${m.cells.join(' × ')}; ${m.ms.toFixed(0)} ms\n${m.summary}`;
   requestRender();
@@ -846,13 +941,29 @@ function onRetargetedMesh(pos, index, m) {
   object.visible = $('show-original').checked;
   state.cells = m.cells; state.totalCells = m.total_cells; state.retargetVertices = m.vertices; state.retargetVersion++;
   shownSteps = m.steps.slice();
-  $('resize-info').textContent = `steps ${m.steps.join(', ')}: cells ${m.cells.join(' × ')} = ${m.total_cells}\n${m.vertices} vertices, ${m.triangles} triangles, ${m.ms.toFixed(0)} ms`;
+  const n = m.cells.length;
+  $('resize-info').textContent = `steps ${m.steps.slice(0, n).join(', ')}: cells ${m.cells.join(' × ')}${n > 1 ? ` = ${m.total_cells}` : ''}\n${m.vertices} vertices, ${m.triangles} triangles, ${m.ms.toFixed(0)} ms` +
+    // The resize starts from the undeformed model.
+    (isDeformed() ? '\nresized from the undeformed model: the deformation is not part of it' : '');
+  // The handles belong to the original, which the resized model hides.
+  overlays.handles.visible = object.visible; if (!object.visible) gizmo.detach();
   // Seams of infinite cost: the result is open there, and must not look like a success.
   $('resize-warning').textContent = m.warning || '';
   $('resize-warning').hidden = !m.warning;
+  reveal(m.warning ? $('resize-warning') : $('resize-info'));
   requestRender();
 }
-$('show-original').onchange = () => { if (object) object.visible = $('show-original').checked || !retargetObject; requestRender(); };
+$('show-original').onchange = () => {
+  if (object) object.visible = $('show-original').checked || !retargetObject;
+  overlays.handles.visible = !object || object.visible;
+  if (object && object.visible) placeGizmo(); else gizmo.detach();
+  requestRender();
+};
+// Leaving or reloading the page loses the deformation, the resize and unsaved detections: the
+// browser asks first.
+window.addEventListener('beforeunload', (ev) => {
+  if (isDeformed() || retargetObject) { ev.preventDefault(); ev.returnValue = ''; }
+});
 $('find-offsets').onclick = () => { setBusy('offsets'); send({ type: 'offsets' }); };
 $('export-resized').onclick = () => { setBusy('export'); send({ type: 'export', path: $('export-resized-path').value, source: 'retargeted', download: true, overwrite: $('overwrite').checked }); };
 
@@ -878,5 +989,6 @@ window.motif.surfaceAt = (x, y) => {
   return hit ? hit.point.toArray() : null;
 };
 
+setBusy(null);
 resize();
 connect();

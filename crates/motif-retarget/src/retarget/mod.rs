@@ -666,6 +666,22 @@ impl RetargetSession {
             .collect()
     }
 
+    /// The most negative steps [`retarget`](Self::retarget) accepts along each principal offset:
+    /// shrinking keeps at least 2 voxels when the ends are preserved
+    /// ([`BoundaryMode::Preserve`]: the first and the last cell), else 1. 0 along dummy
+    /// directions, and for the dense baseline, whose voxels are not one per offset (its bound
+    /// depends on all the steps at once).
+    pub fn min_steps(&self) -> [i32; 3] {
+        let minimum = if self.options.boundary == BoundaryMode::Preserve { 2 } else { 1 };
+        std::array::from_fn(|a| {
+            if a >= self.principal_offsets.len() || self.options.method == RetargetMethod::Dense {
+                0
+            } else {
+                (minimum - self.grid.dims[a] as i64).min(0) as i32
+            }
+        })
+    }
+
     /// Voxels of the input grid per axis (U_in, V_in, W_in).
     pub fn input_voxels(&self) -> [usize; 3] {
         self.grid.dims
