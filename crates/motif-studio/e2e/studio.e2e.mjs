@@ -23,6 +23,7 @@ mkdirSync(root, { recursive: true });
 // Inputs made by the CLI: a facade, its ground truth as a detection RESULT.json, and a scan of it.
 execFileSync(motif, ['example', 'facade', join(root, 'facade.obj'), '--structure', join(root, 'facade.structure.json'), '--quiet']);
 execFileSync(motif, ['sample', join(root, 'facade.obj'), join(root, 'facade_scan.ply'), '--count', '30000', '--quiet']);
+execFileSync(motif, ['convert', join(root, 'facade.obj'), join(root, 'facade.stl'), '--quiet']);
 const structure = JSON.parse(readFileSync(join(root, 'facade.structure.json'), 'utf8'));
 writeFileSync(join(root, 'RESULT.json'), JSON.stringify({ scene: 'facade_scan.ply', classes: structure.instances }));
 
@@ -238,10 +239,19 @@ try {
   st = await until(page, (s) => s.detections !== null && s.busy === null);
   check(st.detections.otherScene && /not on shelf/.test(st.errors[st.errors.length - 1]), `detections of another scan are shown with a warning: ${st.errors[st.errors.length - 1]}`);
 
+  // 3b. An STL (a CAD format) opens Z-up, as Blender shows it; other formats Y-up.
+  await page.fill('#open-path', 'facade.stl');
+  await page.press('#open-path', 'Enter'); // Enter in a path field does what its button does
+  st = await until(page, (s) => s.name === 'facade.stl' && s.busy === null);
+  const upStl = await page.evaluate(() => [window.motif.state.upAxis, document.getElementById('z-up').checked]);
+  check(upStl[0] === 'z' && upStl[1], `an STL opens Z-up (${upStl})`);
+  await shot('04b-stl-z-up.png');
+
   // 4. Facade scan with detections from a RESULT.json.
   await page.fill('#open-path', 'facade_scan.ply');
   await page.click('#open-btn');
   st = await until(page, (s) => s.name === 'facade_scan.ply' && s.busy === null);
+  check((await page.evaluate(() => window.motif.state.upAxis)) === 'y', 'a PLY opens Y-up');
   const meshOnly = await page.evaluate(() => ['find-offsets', 'export', 'undo'].map((id) => document.getElementById(id).disabled));
   check(meshOnly.every((d) => d), `a point cloud leaves the mesh-only buttons off (Find offsets, Export, Undo: ${meshOnly})`);
   await page.fill('#detections-path', 'RESULT.json');

@@ -11,7 +11,7 @@ const $ = (id) => document.getElementById(id);
 const HANDLE_LAG = 0.01;
 
 const state = {
-  connected: false, name: null, vertices: 0, triangles: 0, isMesh: false, bbox: null, diagonal: 0,
+  connected: false, upAxis: 'y', name: null, vertices: 0, triangles: 0, isMesh: false, bbox: null, diagonal: 0,
   meshVersion: 0, handles: 0, handleSamples: [], symmetryResidual: null, restResidual: null,
   maxDisplacement: 0, lastFrameMs: null, medianFrameMs: null, lastSolveMs: null, framesReceived: 0,
   frameTimes: [], frameLog: [], annotation: null, offsets: null, cells: null, totalCells: null, retargetVersion: 0,
@@ -49,7 +49,7 @@ const sun = new THREE.DirectionalLight(0xffffff, 1.6);
 camera.add(sun);
 sun.position.set(1, 2, 3);
 scene.add(camera);
-const orbit = new OrbitControls(camera, renderer.domElement);
+let orbit = new OrbitControls(camera, renderer.domElement);
 const gizmo = new TransformControls(camera, renderer.domElement);
 const gizmoTarget = new THREE.Object3D();
 scene.add(gizmoTarget);
@@ -95,6 +95,22 @@ function resize() {
 }
 window.addEventListener('resize', resize);
 orbit.addEventListener('change', requestRender);
+// Which axis points up on screen. CAD files (STL from OpenSCAD, FreeCAD, slicers) are Z-up, as
+// Blender is; OBJ, glTF and the generated examples are Y-up. An STL opens Z-up, anything else
+// Y-up, and the View panel's "Z up" box switches.
+function setUp(zUp) {
+  state.upAxis = zUp ? 'z' : 'y';
+  $('z-up').checked = zUp;
+  camera.up.set(0, zUp ? 0 : 1, zUp ? 1 : 0);
+  // The orbit keeps the up axis it was made with.
+  const enabled = orbit.enabled;
+  orbit.dispose();
+  orbit = new OrbitControls(camera, renderer.domElement);
+  orbit.enabled = enabled;
+  orbit.addEventListener('change', requestRender);
+  if (geometry) { frameCamera(); drawBox(); }
+  requestRender();
+}
 gizmo.addEventListener('change', requestRender);
 gizmo.addEventListener('dragging-changed', (e) => {
   orbit.enabled = !e.value;
@@ -250,6 +266,7 @@ function onModel(m) {
   state.frameTimes = []; state.medianFrameMs = null; state.lastFrameMs = null;
   setBusy(null);
   $('start-hint').hidden = true;
+  if ((/\.stl$/i.test(m.name)) !== (state.upAxis === 'z')) setUp(/\.stl$/i.test(m.name));
   const [lo, hi] = m.bbox;
   const size = hi.map((v, k) => v - lo[k]);
   $('model-info').textContent = `${m.name}\n${m.vertices} ${m.triangles ? 'vertices' : 'points'}, ${m.triangles} triangles\n` +
@@ -310,7 +327,9 @@ function frameCamera(sphere) {
   framedRadius = s.radius;
   orbit.target.copy(s.center);
   camera.near = s.radius / 100; camera.far = s.radius * 100;
-  camera.position.copy(s.center).add(new THREE.Vector3(0.55, 0.35, 1).normalize().multiplyScalar(s.radius * 3.3));
+  // From the front, a little above and to the right, whichever axis is up.
+  const from = state.upAxis === 'z' ? new THREE.Vector3(0.55, -1, 0.35) : new THREE.Vector3(0.55, 0.35, 1);
+  camera.position.copy(s.center).add(from.normalize().multiplyScalar(s.radius * 3.3));
   camera.updateProjectionMatrix();
   orbit.update();
 }
@@ -325,10 +344,18 @@ function drawBox() {
   const box = geometry.boundingBox;
   overlays.bbox.add(new THREE.Box3Helper(box, 0x8a94aa));
   const size = box.getSize(new THREE.Vector3());
-  const cell = niceStep(Math.max(size.x, size.z) / 8);
-  const n = Math.ceil(Math.max(size.x, size.z) / cell) + 2;
+  // The floor grid under the model: the XZ plane at its lowest y, or the XY plane at its lowest z.
+  const zUp = state.upAxis === 'z';
+  const across = zUp ? size.y : size.z;
+  const cell = niceStep(Math.max(size.x, across) / 8);
+  const n = Math.ceil(Math.max(size.x, across) / cell) + 2;
   const grid = new THREE.GridHelper(n * cell, n, 0xb0b7c6, 0xd3d7df);
-  grid.position.set((box.min.x + box.max.x) / 2, box.min.y, (box.min.z + box.max.z) / 2);
+  if (zUp) {
+    grid.rotation.x = Math.PI / 2;
+    grid.position.set((box.min.x + box.max.x) / 2, (box.min.y + box.max.y) / 2, box.min.z);
+  } else {
+    grid.position.set((box.min.x + box.max.x) / 2, box.min.y, (box.min.z + box.max.z) / 2);
+  }
   overlays.bbox.add(grid);
   state.gridCell = cell;
   $('hud').dataset.scale = `grid ${cell}`;
@@ -358,6 +385,7 @@ $('shade-flat').onchange = $('shade-smooth').onchange = () => {
   requestRender();
 };
 $('wireframe').onchange = () => { material.wireframe = $('wireframe').checked; requestRender(); };
+$('z-up').onchange = () => setUp($('z-up').checked);
 $('show-bbox').onchange = () => { overlays.bbox.visible = $('show-bbox').checked; requestRender(); };
 $('example-open').onclick = () => { setBusy('example'); send({ type: 'example', name: $('example-select').value }); };
 $('open-btn').onclick = () => { setBusy('open'); send({ type: 'open', path: $('open-path').value }); };
@@ -989,6 +1017,10 @@ window.motif.surfaceAt = (x, y) => {
   return hit ? hit.point.toArray() : null;
 };
 
+// Enter in a path field does what its button does.
+for (const [field, button] of [['open-path', 'open-btn'], ['annotation-path', 'load-annotation'], ['detections-path', 'load-detections'], ['export-path', 'export'], ['export-resized-path', 'export-resized']]) {
+  $(field).addEventListener('keydown', (ev) => { if (ev.key === 'Enter' && !$(button).disabled) { ev.preventDefault(); $(button).click(); } });
+}
 setBusy(null);
 resize();
 connect();
