@@ -102,6 +102,14 @@ const MAX_THREADS_PER_CORE: usize = 8;
 
 fn main() -> ExitCode {
     quiet_on_broken_pipe();
+    // Ctrl-C (or SIGTERM, SIGHUP) ends the process without unwinding: the writes in progress
+    // would leave their hidden temporary files (`.OUT.PID.N.tmp`, a megabyte for a large PLY)
+    // beside the outputs. Outputs already written, and the files being replaced, are untouched.
+    let _ = ctrlc::set_handler(|| {
+        motif_core::io::remove_temporary_files();
+        eprintln!("interrupted");
+        std::process::exit(130);
+    });
     let cli = parse_arguments();
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     if let Some(threads) = cli.global.threads.filter(|&t| t > MAX_THREADS_PER_CORE * cores) {

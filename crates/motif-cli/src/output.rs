@@ -112,7 +112,82 @@ pub fn describe(err: &anyhow::Error) -> String {
         }
         msg.push_str(&text);
     }
-    plain_os_text(&msg)
+    plain_os_text(&tidy_numbers(&flag_names(&msg)))
+}
+
+/// An option named as a library names it (``invalid option `preprocess.kappa_threshold` ``)
+/// becomes the flag a user types (`--kappa`), when some command has that flag: the field's last
+/// part, in kebab case, or a flag named otherwise (`kappa_threshold` is `--kappa`).
+fn flag_names(text: &str) -> String {
+    const PREFIX: &str = "invalid option `";
+    let mut out = String::new();
+    let mut rest = text;
+    while let Some(at) = rest.find(PREFIX) {
+        let after = &rest[at + PREFIX.len()..];
+        let Some(end) = after.find('`') else { break };
+        let name = &after[..end];
+        out.push_str(&rest[..at]);
+        match flag_for(name) {
+            Some(flag) => out.push_str(&flag),
+            None => out.push_str(&rest[at..at + PREFIX.len() + end + 1]),
+        }
+        rest = &after[end + 1..];
+    }
+    out.push_str(rest);
+    out
+}
+
+/// The command-line flag for a library option name, if any command has it.
+fn flag_for(name: &str) -> Option<String> {
+    fn has(c: &clap::Command, long: &str) -> bool {
+        c.get_arguments().any(|a| a.get_long() == Some(long)) || c.get_subcommands().any(|s| has(s, long))
+    }
+    let last = name.rsplit('.').next()?;
+    let long = match last {
+        "kappa_threshold" => "kappa".to_string(),
+        other => other.replace('_', "-"),
+    };
+    let cli = <crate::cli::Cli as clap::CommandFactory>::command();
+    has(&cli, &long).then(|| format!("--{long}"))
+}
+
+/// Writes numbers of more than 20 digits in scientific notation: `{}` prints an f64 in full, so
+/// `--radius 1e-300` came back in messages as a 300-digit decimal.
+pub fn tidy_numbers(text: &str) -> String {
+    let b = text.as_bytes();
+    let mut out = String::with_capacity(text.len());
+    let mut i = 0;
+    while i < b.len() {
+        let start = i;
+        if b[i].is_ascii_digit() {
+            while i < b.len()
+                && (b[i].is_ascii_digit() || (b[i] == b'.' && b.get(i + 1).is_some_and(u8::is_ascii_digit)))
+            {
+                i += 1;
+            }
+            let run = &text[start..i];
+            let digits = run.bytes().filter(u8::is_ascii_digit).count();
+            match run.parse::<f64>() {
+                Ok(v) if digits > 20 && v.is_finite() => {
+                    let e = format!("{v:.3e}");
+                    // 1.000e-300 → 1e-300, 1.500e300 → 1.5e300.
+                    let (mantissa, exp) = e.split_once('e').unwrap_or((&e, "0"));
+                    let mantissa = if mantissa.contains('.') {
+                        mantissa.trim_end_matches('0').trim_end_matches('.')
+                    } else {
+                        mantissa
+                    };
+                    out.push_str(&format!("{mantissa}e{exp}"));
+                }
+                _ => out.push_str(run),
+            }
+        } else {
+            let c = text[i..].chars().next().unwrap_or(' ');
+            out.push(c);
+            i += c.len_utf8();
+        }
+    }
+    out
 }
 
 /// The operating system's messages in the style of Motif's own: lower case, without the
@@ -149,7 +224,32 @@ fn plain_os_text(msg: &str) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::plain_os_text;
+    use super::{flag_names, plain_os_text, tidy_numbers};
+
+    #[test]
+    fn library_option_names_become_the_flags_users_type() {
+        assert_eq!(
+            flag_names("invalid option `preprocess.kappa_threshold`: must be > 0"),
+            "--kappa: must be > 0"
+        );
+        assert_eq!(flag_names("invalid option `em.peak_share`: at most 1"), "--peak-share: at most 1");
+        assert_eq!(flag_names("a: invalid option `tau`: x"), "a: --tau: x");
+        // A name no command has as a flag is kept.
+        assert_eq!(
+            flag_names("invalid option `extent.no_such_thing`: x"),
+            "invalid option `extent.no_such_thing`: x"
+        );
+    }
+
+    #[test]
+    fn huge_and_tiny_numbers_are_written_in_scientific_notation() {
+        let tiny = format!("radius {} (the model is 1.5061 across)", 1e-300);
+        assert_eq!(tidy_numbers(&tiny), "radius 1e-300 (the model is 1.5061 across)");
+        assert_eq!(tidy_numbers(&format!("--tau {}: too long", 1.5e300)), "--tau 1.5e300: too long");
+        // Ordinary numbers, names with digits and non-ASCII text are kept as they are.
+        let plain = "scene_12.ply: 300000 points, 0.000125 apart, τ ≤ 0.5, seed 18446744073709551615";
+        assert_eq!(tidy_numbers(plain), plain);
+    }
 
     #[test]
     fn os_messages_are_written_like_motif_s_own() {

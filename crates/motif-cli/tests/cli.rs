@@ -1605,19 +1605,22 @@ fn an_encoding_for_another_format_is_named_in_a_warning() {
 
 #[test]
 fn descriptors_and_curvatures_of_which_none_is_valid_say_why() {
-    // A support radius far below the point spacing: the outputs are written, with a warning
-    // naming the cause and the remedy (it used to report "0 valid" and nothing more).
+    // A support radius far below the point spacing: an error naming the cause and the remedy,
+    // and no output (it used to report "0 valid" and nothing more; then it wrote the useless
+    // file with a warning and exited 0).
     let d = tmp();
     assert!(motif(&["example", "shelf", "s.obj"], d.path()).status.success());
     let o =
         motif(&["features", "shot", "s.obj", "-o", "f.json", "--radius", "1e-6", "--every", "1"], d.path());
-    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(
         stderr(&o).contains("none of the 984 descriptors is valid") && stderr(&o).contains("larger --radius")
     );
+    assert!(!d.path().join("f.json").exists());
     let o = motif(&["curvature", "s.obj", "k.ply", "--radius", "1e-7"], d.path());
-    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("no point could be fitted") && stderr(&o).contains("radius 0.0000001"));
+    assert!(!d.path().join("k.ply").exists());
     // With sensible parameters, no warning.
     let o = motif(&["curvature", "s.obj", "k2.ply"], d.path());
     assert!(o.status.success() && !stderr(&o).contains("warning"), "{}", stderr(&o));
@@ -1784,4 +1787,92 @@ fn sparsity_follows_the_seed() {
     };
     let (a, b) = (seed_of("1"), seed_of("5"));
     assert!(a.contains("\"seed\":1") && b.contains("\"seed\":5"), "{a}");
+}
+
+/// Found by an audit with bad inputs (2026-11-30): results that are nothing are failures, files no
+/// reader accepts are not written, endless inputs are refused, replaced files keep their
+/// permissions, and an interrupted write leaves no temporary file.
+#[test]
+fn failures_found_by_the_bad_input_audit() {
+    let d = tmp();
+    let dir = d.path();
+    assert_eq!(motif(&["example", "gear", "g.obj", "-q"], dir).status.code(), Some(0));
+    // Curvature that fits no point (see also `descriptors_and_curvatures_of_which_none_is_valid_
+    // say_why`), with a radius printed as 1e-300 rather than in 300 digits.
+    let o = motif(&["curvature", "--radius", "1e-300", "g.obj", "c.ply"], dir);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("no point could be fitted") && stderr(&o).contains("1e-300"),
+        "{}",
+        stderr(&o)
+    );
+    // Points that could not be fitted are said so and left out of the medians.
+    let o = motif(&["curvature", "-k", "6", "g.obj", "c.csv", "--json", "c.json"], dir);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("c.json")).unwrap()).unwrap();
+    assert!(!r["neighbourhood"].as_str().unwrap().contains("Knn"), "{r}");
+    if r["not_fitted"].as_u64().unwrap() > 0 {
+        assert!(stderr(&o).contains("could not be fitted"), "{}", stderr(&o));
+    }
+    // A coordinate beyond f32 is not written into a binary STL (Motif then refused to read it).
+    std::fs::write(dir.join("huge.obj"), "v 1e39 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\n").unwrap();
+    let o = motif(&["convert", "huge.obj", "huge.stl"], dir);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("does not fit the f32"), "{}", stderr(&o));
+    assert!(!dir.join("huge.stl").exists());
+    // A device as input is refused at once (reading /dev/zero grew without end).
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::symlink("/dev/zero", dir.join("zero.ply")).unwrap();
+        let o = motif(&["info", "zero.ply"], dir);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains("not a regular file"), "{}", stderr(&o));
+        std::fs::remove_file(dir.join("zero.ply")).unwrap();
+    }
+    // A replaced output keeps its permissions.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::write(dir.join("private.ply"), "old").unwrap();
+        std::fs::set_permissions(dir.join("private.ply"), std::fs::Permissions::from_mode(0o600)).unwrap();
+        assert_eq!(motif(&["convert", "g.obj", "private.ply", "-q"], dir).status.code(), Some(0));
+        let mode = std::fs::metadata(dir.join("private.ply")).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode, 0o600);
+    }
+    // The benchmark of the studio checks its arguments before a browser starts.
+    let o = motif(&["bench", "studio", "--example", "nope"], dir);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("no such example"), "{}", stderr(&o));
+    assert_no_stray_files(dir);
+}
+
+/// Ctrl-C or SIGTERM during a write leaves no temporary file (`.OUT.PID.N.tmp`) behind; the
+/// signal may also come after the write, which must leave none either.
+#[cfg(unix)]
+#[test]
+fn an_interrupted_write_leaves_no_temporary_file() {
+    let d = tmp();
+    let dir = d.path();
+    assert_eq!(
+        motif(&["example", "scene-facade", "s.ply", "-q", "--points", "200000"], dir).status.code(),
+        Some(0)
+    );
+    for signal in ["-INT", "-TERM"] {
+        let child = Command::new(env!("CARGO_BIN_EXE_motif"))
+            .args(["-q", "convert", "s.ply", "big.ply", "--ply-encoding", "ascii", "--force"])
+            .current_dir(dir)
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(60));
+        let _ = Command::new("kill").args([signal, &child.id().to_string()]).status();
+        let o = child.wait_with_output().unwrap();
+        assert!(matches!(o.status.code(), Some(0) | Some(130)), "{signal}: {:?} {}", o.status, stderr(&o));
+        let stray: Vec<_> = files_in(dir)
+            .into_iter()
+            .filter(|f| f.file_name().unwrap().to_string_lossy().ends_with(".tmp"))
+            .collect();
+        assert!(stray.is_empty(), "{signal}: {stray:?}");
+    }
 }

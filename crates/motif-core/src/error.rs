@@ -108,6 +108,7 @@ impl Error {
                     | std::io::ErrorKind::InvalidData
                     | std::io::ErrorKind::UnexpectedEof
                     | std::io::ErrorKind::IsADirectory
+                    | std::io::ErrorKind::InvalidInput
             ),
             _ => true,
         }

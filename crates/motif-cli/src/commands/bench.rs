@@ -274,6 +274,23 @@ pub fn deform(a: BenchDeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
 /// Debian's Chromium) against this binary's `motif studio` and passes its table through. The
 /// script lives in the source tree: this benchmark is for developers, like `cargo bench`.
 pub fn studio(a: crate::cli::BenchStudioArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    // Checked here, before a browser starts: a wrong example or a window of no size used to
+    // hang the page until it was killed.
+    if !motif_core::procedural::names().contains(&a.example.as_str()) {
+        return Err(crate::output::bad_input(format!(
+            "--example {}: no such example (`motif example --list` names them)",
+            a.example
+        )));
+    }
+    if a.steps == 0 {
+        return Err(crate::output::bad_input("--steps 0: the benchmark needs at least one drag step"));
+    }
+    if !(200..=8192).contains(&a.width) || !(200..=8192).contains(&a.height) {
+        return Err(crate::output::bad_input(format!(
+            "--width {} --height {}: the window must be 200 to 8192 pixels each way",
+            a.width, a.height
+        )));
+    }
     let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../motif-studio/e2e/bench.mjs");
     if !script.exists() {
         // A binary installed away from its source tree (the build machine's path is all it knows).

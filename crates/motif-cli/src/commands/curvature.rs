@@ -14,6 +14,7 @@ use serde::Serialize;
 use crate::cli::{CurvatureArgs, GlobalArgs};
 use crate::output::{bad_input, maybe_json, ms_since};
 
+/// Smallest, median and largest value over the fitted points.
 #[derive(Debug, Serialize)]
 struct Summary {
     min: f64,
@@ -85,6 +86,29 @@ pub fn run(a: CurvatureArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         }
     })?;
     let ms = ms_since(t);
+    let described = match neighbourhood {
+        Neighbourhood::Radius(r) => format!("radius {r}"),
+        Neighbourhood::Knn(k) => format!("{k} nearest points"),
+        Neighbourhood::Rings(n) => format!("{n} rings"),
+    };
+    let fitted = pc.iter().filter(|c| c.status == CurvatureStatus::Fitted).count();
+    // Nothing fitted is a failure, not a file of zeros (it used to exit 0 with one).
+    if fitted == 0 && !pc.is_empty() {
+        return Err(bad_input(format!(
+            "{}: no point could be fitted: no neighbourhood ({described}) holds enough points for a \
+             quadratic (6 or more, spread over the surface); use a larger --radius or -k",
+            a.input.display()
+        )));
+    }
+    if fitted < pc.len() {
+        super::warn(format!(
+            "{} of {} points ({:.0}%) could not be fitted ({described}): their k1 and k2 are 0, marked \
+             by the status column (CSV) or the `fitted` property (PLY), and left out of the medians",
+            pc.len() - fitted,
+            pc.len(),
+            100.0 * (pc.len() - fitted) as f64 / pc.len() as f64
+        ));
+    }
     let is_csv = a.output().extension().is_some_and(|e| e.eq_ignore_ascii_case("csv"));
     if is_csv {
         write_csv(a.output(), &model.vertices.positions, &pc)?;
@@ -99,35 +123,30 @@ pub fn run(a: CurvatureArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         for (i, axis) in ["x", "y", "z"].iter().enumerate() {
             v.set_attribute(&format!("d2{axis}"), col(&|c| c.d2[i]));
         }
+        v.set_attribute(
+            "fitted",
+            AttributeData::Int(pc.iter().map(|c| i64::from(c.status == CurvatureStatus::Fitted)).collect()),
+        );
         if v.normals.is_none() {
             v.normals = Some(pc.iter().map(|c| c.normal).collect());
         }
         super::write_model(a.output(), &model, &[&a.input], g, &a.encoding)?;
     }
-    let fitted = pc.iter().filter(|c| c.status == CurvatureStatus::Fitted).count();
+    let fitted_only = |f: fn(&PrincipalCurvature) -> f64| {
+        summary(pc.iter().filter(|c| c.status == CurvatureStatus::Fitted).map(f).collect())
+    };
     let r = CurvatureReport {
         input: a.input.display().to_string(),
         output: a.output().display().to_string(),
         points: pc.len(),
-        neighbourhood: format!("{neighbourhood:?}"),
+        neighbourhood: described,
         fitted,
         not_fitted: pc.len() - fitted,
-        k1: summary(pc.iter().map(|c| c.k1).collect()),
-        k2: summary(pc.iter().map(|c| c.k2).collect()),
+        k1: fitted_only(|c| c.k1),
+        k2: fitted_only(|c| c.k2),
         sign_convention: "k1 >= k2; positive where the surface bends away from the (outward) normal",
         ms,
     };
-    if r.fitted == 0 && r.points > 0 {
-        super::warn(format!(
-            "no point could be fitted: no neighbourhood ({}) holds enough points for a \
-                 quadratic (6 or more, spread over the surface); use a larger --radius or -k",
-            match neighbourhood {
-                Neighbourhood::Radius(r) => format!("radius {r}"),
-                Neighbourhood::Knn(k) => format!("{k} nearest points"),
-                Neighbourhood::Rings(n) => format!("{n} rings"),
-            }
-        ));
-    }
     if !crate::output::json_on_stdout(&a.json.json) {
         super::written(
             g,

@@ -52,6 +52,14 @@ pub fn run_shot(a: ShotArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         (None, Some(k)) => (0..n).step_by(k).collect(),
         (None, None) => return Err(bad_input("give --keypoints FILE or --every K")),
     };
+    if !(a.radius > 0.0 && a.radius.is_finite()) {
+        return Err(bad_input(format!(
+            "--radius {}: the SHOT support radius must be a positive number (model units; {} is {:.4} across)",
+            a.radius,
+            a.input.display(),
+            model.vertices.diagonal()
+        )));
+    }
     let options = ShotOptions {
         radius: a.radius,
         frame: match a.frame {
@@ -67,6 +75,17 @@ pub fn run_shot(a: ShotArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let shots =
         compute_shot_with_tree(&tree, &model.vertices.positions, &normals, &keypoints, &options, &bar)?;
     let ms = ms_since(t);
+    // No valid descriptor is a failure, not a file of invalid ones (it used to exit 0 with one).
+    if shots.num_valid() == 0 && !shots.is_empty() {
+        return Err(crate::output::bad_input(format!(
+            "{}: none of the {} descriptors is valid: no keypoint has a neighbour within the support \
+             radius {} (the model is {:.4} across); use a larger --radius",
+            a.input.display(),
+            shots.len(),
+            a.radius,
+            model.vertices.diagonal()
+        )));
+    }
     let csv = a.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv"));
     motif_core::io::write_atomic(&a.output, |w| {
         let mut w = std::io::BufWriter::new(w);
@@ -84,15 +103,6 @@ pub fn run_shot(a: ShotArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         ms,
         ms_per_keypoint: if shots.is_empty() { 0.0 } else { ms / shots.len() as f64 },
     };
-    if r.valid == 0 && r.keypoints > 0 {
-        super::warn(format!(
-            "none of the {} descriptors is valid: no keypoint has a neighbour within the \
-                 support radius {} (the model is {:.4} across); use a larger --radius",
-            r.keypoints,
-            a.radius,
-            model.vertices.diagonal()
-        ));
-    }
     if !crate::output::json_on_stdout(&a.json.json) {
         super::written(
             g,

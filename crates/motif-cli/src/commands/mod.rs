@@ -140,7 +140,7 @@ pub fn write_model(
 /// Prints a warning on stderr, under --quiet too: a warning says something about the result
 /// (an estimated normal, an open seam) that a quiet script should still see.
 pub fn warn(msg: impl AsRef<str>) {
-    eprintln!("warning: {}", msg.as_ref());
+    eprintln!("warning: {}", crate::output::tidy_numbers(msg.as_ref()));
 }
 
 /// For a command whose result is the file it wrote: what the file holds, on stdout as
@@ -148,7 +148,7 @@ pub fn warn(msg: impl AsRef<str>) {
 /// stderr (hidden by --quiet). Before, both were one note, so --quiet hid the only result of
 /// `curvature`, `sample`, `normals`, `features shot`, `convert` and `example`.
 pub fn written(g: &crate::cli::GlobalArgs, output: impl std::fmt::Display, summary: impl AsRef<str>) {
-    println!("{output}: {}", summary.as_ref());
+    println!("{output}: {}", crate::output::tidy_numbers(summary.as_ref()));
     note(g, format!("wrote {output}"));
 }
 

@@ -43,12 +43,47 @@ pub fn run(a: NormalsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     if a.k > 1000 {
         return Err(bad_input(format!("-k {}: use at most 1000 neighbours (the default is 16)", a.k)));
     }
+    if let Some(v) = a.viewpoint.as_deref().filter(|v| v.iter().any(|c| !c.is_finite())) {
+        return Err(bad_input(format!("--viewpoint {v:?}: the viewpoint must be finite")));
+    }
+    if a.viewpoint.is_some() && !matches!(a.orientation, OrientationArg::Viewpoint) {
+        super::warn("--viewpoint is used with --orientation viewpoint only; it is ignored here");
+    }
     let use_mesh = model.is_mesh() && !a.from_points;
+    // Options that only point clouds use are said to be ignored, not silently dropped.
+    let point_options: Vec<&str> = [
+        (a.k != 16, "-k"),
+        (!matches!(a.orientation, OrientationArg::Consistent), "--orientation"),
+        (a.viewpoint.is_some(), "--viewpoint"),
+    ]
+    .into_iter()
+    .filter_map(|(given, flag)| given.then_some(flag))
+    .collect();
+    if use_mesh && !point_options.is_empty() {
+        super::warn(format!(
+            "{}: a mesh's normals come from its faces; {} {} to point clouds and {} ignored \
+             (--from-points estimates them from the vertices instead)",
+            a.input.display(),
+            point_options.join(", "),
+            if point_options.len() == 1 { "applies" } else { "apply" },
+            if point_options.len() == 1 { "is" } else { "are" },
+        ));
+    }
     let (normals, undetermined) = if use_mesh {
         let normals =
             TriMesh { positions: model.vertices.positions.clone(), triangles: model.triangles.clone() }
                 .vertex_normals();
-        (normals, 0)
+        // Vertices on no face of any area have no normal (written as 0, 0, 0).
+        let zero = normals.iter().filter(|n| n.iter().all(|c| *c == 0.0)).count();
+        if zero > 0 {
+            super::warn(format!(
+                "{}: {zero} of {} vertices lie on no face of non-zero area: their normals are written as \
+                 (0, 0, 0)",
+                a.input.display(),
+                normals.len()
+            ));
+        }
+        (normals, zero)
     } else {
         let opts = NormalsOptions { neighbours: a.k, orientation, ..Default::default() };
         let est = crate::progress::Bar::new(g.quiet)

@@ -35,6 +35,11 @@ pub fn write_atomic(path: &Path, f: impl FnOnce(&mut dyn Write) -> io::Result<()
         _ => Path::new("."),
     };
     let (file, guard) = create_temp(dir, &name.to_string_lossy()).map_err(|e| Error::io(path, e))?;
+    // A file that is replaced keeps its permissions (a private 600 output stayed 600 with
+    // `cp`, and became 644 here).
+    if let Some(meta) = fs::metadata(path).ok().filter(|m| m.is_file()) {
+        let _ = fs::set_permissions(&guard.path, meta.permissions());
+    }
     let result = (|| {
         let mut w = BufWriter::new(file);
         f(&mut w)?;
@@ -88,6 +93,7 @@ struct TempGuard {
 impl TempGuard {
     fn disarm(mut self) {
         self.armed = false;
+        forget_temp(&self.path);
     }
 }
 
@@ -95,7 +101,26 @@ impl Drop for TempGuard {
     fn drop(&mut self) {
         if self.armed {
             let _ = fs::remove_file(&self.path);
+            forget_temp(&self.path);
         }
+    }
+}
+
+/// The temporary files being written now, for [`remove_temporary_files`].
+static LIVE_TEMPS: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+fn forget_temp(path: &Path) {
+    let mut live = LIVE_TEMPS.lock().unwrap_or_else(|e| e.into_inner());
+    live.retain(|p| p != path);
+}
+
+/// Removes the temporary files of the writes in progress. For a program's interrupt handler
+/// (Ctrl-C, SIGTERM), which ends the process without running the writers' own clean-up: a
+/// `.NAME.PID.N.tmp` of a large output was left behind. The targets are untouched.
+pub fn remove_temporary_files() {
+    let live = std::mem::take(&mut *LIVE_TEMPS.lock().unwrap_or_else(|e| e.into_inner()));
+    for p in live {
+        let _ = fs::remove_file(p);
     }
 }
 
@@ -107,7 +132,10 @@ fn create_temp(dir: &Path, name: &str) -> io::Result<(File, TempGuard)> {
         let n = COUNTER.fetch_add(1, Ordering::Relaxed);
         let path = dir.join(format!(".{name}.{pid}.{n}.tmp"));
         match OpenOptions::new().write(true).create_new(true).open(&path) {
-            Ok(file) => return Ok((file, TempGuard { path, armed: true })),
+            Ok(file) => {
+                LIVE_TEMPS.lock().unwrap_or_else(|e| e.into_inner()).push(path.clone());
+                return Ok((file, TempGuard { path, armed: true }));
+            }
             // A leftover of an earlier process with the same pid: try the next number.
             Err(e) if e.kind() == io::ErrorKind::AlreadyExists => continue,
             Err(e) => return Err(e),

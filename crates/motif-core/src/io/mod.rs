@@ -39,7 +39,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-pub use atomic::write_atomic;
+pub use atomic::{remove_temporary_files, write_atomic};
 pub use image::write_png_rgb;
 
 use crate::error::Position;
@@ -202,6 +202,15 @@ pub fn read(path: &Path) -> Result<Model> {
         return Err(Error::io(path, e));
     }
     let format = Format::from_path(path)?;
+    // A device or FIFO (`/dev/zero`, a named pipe) may never end: reading one grew to 7.5 GB
+    // of memory, or blocked forever.
+    if std::fs::metadata(path).is_ok_and(|m| !m.is_file()) {
+        let e = std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "not a regular file (a device, FIFO or socket): save the data to a file first",
+        );
+        return Err(Error::io(path, e));
+    }
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
@@ -400,7 +409,7 @@ fn write_parts(
             write_atomic(path, |w| ply::write(w, cloud, triangles, &header, options.ply))
         }
         Format::Stl => {
-            stl::check(triangles)?;
+            stl::check(triangles, &cloud.positions, options.stl)?;
             write_atomic(path, |w| stl::write(w, cloud, triangles, options.stl))
         }
         Format::Gltf | Format::Glb => {

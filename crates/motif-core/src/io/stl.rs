@@ -206,8 +206,18 @@ fn weld(
     })
 }
 
-/// STL stores triangles only.
-pub(super) fn check(triangles: &[[u32; 3]]) -> Result<()> {
+/// STL stores triangles only, and binary STL single-precision coordinates: a coordinate beyond
+/// f32's range (about 3.4e38) would be written as infinite, in a file no reader (Motif's
+/// included) accepts.
+pub(super) fn check(triangles: &[[u32; 3]], positions: &[[f64; 3]], encoding: StlEncoding) -> Result<()> {
+    if encoding == StlEncoding::Binary
+        && let Some(c) = positions.iter().flatten().find(|c| !(**c as f32).is_finite())
+    {
+        return Err(Error::InvalidInput(format!(
+            "coordinate {c:e} does not fit the f32 coordinates of binary STL (at most about 3.4e38): \
+             rescale the model, or write ASCII STL (--stl-encoding ascii) or another format"
+        )));
+    }
     if triangles.is_empty() {
         return Err(Error::InvalidInput(
             "STL stores triangles only; write a point cloud as .ply (or .obj/.off)".to_string(),
