@@ -7,6 +7,9 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 
 /// Structure-aware 3D content creation: find symmetries, repeated building blocks and dominant
 /// offsets in meshes and scans, and use them to deform and resize models.
+/// Neighbours of a point-cloud normal fit (`motif normals -k`) by default.
+pub const NORMALS_K: usize = 16;
+
 #[derive(Debug, Parser)]
 #[command(name = "motif", version, propagate_version = true, arg_required_else_help = true)]
 pub struct Cli {
@@ -339,7 +342,7 @@ pub struct NormalsArgs {
     #[arg(short = 'o', long = "output", value_name = "OUTPUT", conflicts_with = "output")]
     pub output_flag: Option<PathBuf>,
     /// Neighbours used by the PCA fit.
-    #[arg(short, long, default_value_t = 16)]
+    #[arg(short, long, default_value_t = NORMALS_K)]
     pub k: usize,
     /// How signs are chosen.
     #[arg(long, value_enum, default_value_t)]
@@ -849,7 +852,8 @@ pub struct SymmetryDetectArgs {
 pub struct OffsetsArgs {
     /// Input mesh.
     pub mesh: PathBuf,
-    /// Picture of the offset histogram (three projections) with the chosen offsets (PNG).
+    /// Picture of the offset histogram (three projections; offsets in one plane get that plane
+    /// alone, along one line a profile) with the chosen offsets (PNG).
     #[arg(long, value_name = "PNG")]
     pub plot: Option<PathBuf>,
     /// τ of eq. 4.1: minimum offset length, in units of the normalised model ([-1, 1]).

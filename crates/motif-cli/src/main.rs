@@ -41,6 +41,41 @@ fn quiet_on_broken_pipe() {
 /// The arguments, with negative numbers taken as values everywhere: `--tau -1` is then refused
 /// by the option's own range check, which says what the range is, rather than read as an
 /// unknown flag `-1`.
+/// Ctrl-C (SIGINT), SIGTERM and SIGHUP end the process without unwinding: the writes in progress
+/// would leave their hidden temporary files (`.OUT.PID.N.tmp`, a megabyte for a large PLY)
+/// beside the outputs. A thread waits for those signals, removes the files, and then dies of the
+/// same signal (the default action, re-raised), so a shell sees a death by signal as before and
+/// a loop of commands stops at Ctrl-C. Signals the parent ignores (`nohup`, `cmd &` in a script)
+/// stay ignored. Outputs already written, and the files being replaced, are untouched.
+#[cfg(unix)]
+fn remove_temporary_files_on_signals() {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+    let watched: Vec<i32> = [SIGINT, SIGTERM, SIGHUP].into_iter().filter(|&s| !ignored(s)).collect();
+    let Ok(mut signals) = signal_hook::iterator::Signals::new(&watched) else { return };
+    std::thread::spawn(move || {
+        if let Some(signal) = signals.forever().next() {
+            motif_core::io::remove_temporary_files_and(|| {
+                let _ = signal_hook::low_level::emulate_default_handler(signal);
+            });
+        }
+    });
+}
+
+#[cfg(not(unix))]
+fn remove_temporary_files_on_signals() {}
+
+/// Whether `signal`'s disposition is "ignore" (inherited from the parent), read from the
+/// `SigIgn` mask of `/proc/self/status` (Linux; elsewhere no signal counts as ignored).
+#[cfg(unix)]
+fn ignored(signal: i32) -> bool {
+    let Ok(status) = std::fs::read_to_string("/proc/self/status") else { return false };
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("SigIgn:"))
+        .and_then(|mask| u64::from_str_radix(mask.trim(), 16).ok())
+        .is_some_and(|mask| (1..=64).contains(&signal) && mask >> (signal - 1) & 1 == 1)
+}
+
 fn parse_arguments() -> cli::Cli {
     fn negatives(cmd: clap::Command) -> clap::Command {
         cmd.mut_args(|a| if a.get_action().takes_values() { a.allow_negative_numbers(true) } else { a })
@@ -50,6 +85,14 @@ fn parse_arguments() -> cli::Cli {
     let matches = cmd.try_get_matches_from_mut(std::env::args_os()).unwrap_or_else(|e| {
         picture_flag_error(&cmd, &e).unwrap_or(e).exit();
     });
+    // The subcommand path (`baseline rigid-icp`), so that errors name its own flags.
+    let mut path = Vec::new();
+    let mut m = &matches;
+    while let Some((name, sub)) = m.subcommand() {
+        path.push(name.to_string());
+        m = sub;
+    }
+    output::set_command_path(path);
     cli::Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit())
 }
 
@@ -102,14 +145,7 @@ const MAX_THREADS_PER_CORE: usize = 8;
 
 fn main() -> ExitCode {
     quiet_on_broken_pipe();
-    // Ctrl-C (or SIGTERM, SIGHUP) ends the process without unwinding: the writes in progress
-    // would leave their hidden temporary files (`.OUT.PID.N.tmp`, a megabyte for a large PLY)
-    // beside the outputs. Outputs already written, and the files being replaced, are untouched.
-    let _ = ctrlc::set_handler(|| {
-        motif_core::io::remove_temporary_files();
-        eprintln!("interrupted");
-        std::process::exit(130);
-    });
+    remove_temporary_files_on_signals();
     let cli = parse_arguments();
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     if let Some(threads) = cli.global.threads.filter(|&t| t > MAX_THREADS_PER_CORE * cores) {

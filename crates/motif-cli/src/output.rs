@@ -116,8 +116,9 @@ pub fn describe(err: &anyhow::Error) -> String {
 }
 
 /// An option named as a library names it (``invalid option `preprocess.kappa_threshold` ``)
-/// becomes the flag a user types (`--kappa`), when some command has that flag: the field's last
-/// part, in kebab case, or a flag named otherwise (`kappa_threshold` is `--kappa`).
+/// becomes the flag a user types (`--kappa`), when the command being run has that flag: the
+/// field's last part, in kebab case, or a flag named otherwise (`kappa_threshold` is `--kappa`).
+/// `epsilon` is left as it is: two flags (`--epsilon`, `--epsilon-abs`) set it.
 fn flag_names(text: &str) -> String {
     const PREFIX: &str = "invalid option `";
     let mut out = String::new();
@@ -137,7 +138,8 @@ fn flag_names(text: &str) -> String {
     out
 }
 
-/// The command-line flag for a library option name, if any command has it.
+/// The command-line flag for a library option name, if the command being run has it (with no
+/// command known, if any command has it).
 fn flag_for(name: &str) -> Option<String> {
     fn has(c: &clap::Command, long: &str) -> bool {
         c.get_arguments().any(|a| a.get_long() == Some(long)) || c.get_subcommands().any(|s| has(s, long))
@@ -145,10 +147,17 @@ fn flag_for(name: &str) -> Option<String> {
     let last = name.rsplit('.').next()?;
     let long = match last {
         "kappa_threshold" => "kappa".to_string(),
+        "epsilon" => return None,
         other => other.replace('_', "-"),
     };
-    let cli = <crate::cli::Cli as clap::CommandFactory>::command();
-    has(&cli, &long).then(|| format!("--{long}"))
+    let mut cmd = <crate::cli::Cli as clap::CommandFactory>::command();
+    for sub in COMMAND_PATH.get().into_iter().flatten() {
+        match cmd.find_subcommand(sub) {
+            Some(s) => cmd = s.clone(),
+            None => break,
+        }
+    }
+    has(&cmd, &long).then(|| format!("--{long}"))
 }
 
 /// Writes numbers of more than 20 digits in scientific notation: `{}` prints an f64 in full, so
@@ -159,7 +168,11 @@ pub fn tidy_numbers(text: &str) -> String {
     let mut i = 0;
     while i < b.len() {
         let start = i;
-        if b[i].is_ascii_digit() {
+        // A run of digits inside a name (`scan_20240101120000123456789.ply`) is not a number.
+        let before = text[..start].chars().next_back();
+        let before_minus =
+            before == Some('-') && !text[..start - 1].chars().next_back().is_some_and(is_name_char);
+        if b[i].is_ascii_digit() && (before.is_none_or(|c| !is_name_char(c) && c != '-') || before_minus) {
             while i < b.len()
                 && (b[i].is_ascii_digit() || (b[i] == b'.' && b.get(i + 1).is_some_and(u8::is_ascii_digit)))
             {
@@ -167,8 +180,11 @@ pub fn tidy_numbers(text: &str) -> String {
             }
             let run = &text[start..i];
             let digits = run.bytes().filter(u8::is_ascii_digit).count();
+            let after = text[i..].chars().next();
+            let in_name = after.is_some_and(|c| is_name_char(c) || c == '/')
+                || (after == Some('.') && text[i + 1..].chars().next().is_some_and(|c| c.is_alphabetic()));
             match run.parse::<f64>() {
-                Ok(v) if digits > 20 && v.is_finite() => {
+                Ok(v) if digits > 20 && v.is_finite() && !in_name => {
                     let e = format!("{v:.3e}");
                     // 1.000e-300 → 1e-300, 1.500e300 → 1.5e300.
                     let (mantissa, exp) = e.split_once('e').unwrap_or((&e, "0"));
@@ -182,12 +198,32 @@ pub fn tidy_numbers(text: &str) -> String {
                 _ => out.push_str(run),
             }
         } else {
+            // Copy up to the next character that could start a number (a digit run inside a
+            // name is copied whole).
             let c = text[i..].chars().next().unwrap_or(' ');
             out.push(c);
             i += c.len_utf8();
+            if is_name_char(c) {
+                while i < b.len() && b[i].is_ascii_digit() {
+                    out.push(b[i] as char);
+                    i += 1;
+                }
+            }
         }
     }
     out
+}
+
+/// A character that makes a digit run next to it part of a name or word.
+fn is_name_char(c: char) -> bool {
+    c.is_alphanumeric() || c == '_'
+}
+
+static COMMAND_PATH: std::sync::OnceLock<Vec<String>> = std::sync::OnceLock::new();
+
+/// The subcommand path being run (`["baseline", "rigid-icp"]`), for errors that name its flags.
+pub fn set_command_path(path: Vec<String>) {
+    let _ = COMMAND_PATH.set(path);
 }
 
 /// The operating system's messages in the style of Motif's own: lower case, without the
@@ -246,9 +282,20 @@ mod tests {
         let tiny = format!("radius {} (the model is 1.5061 across)", 1e-300);
         assert_eq!(tidy_numbers(&tiny), "radius 1e-300 (the model is 1.5061 across)");
         assert_eq!(tidy_numbers(&format!("--tau {}: too long", 1.5e300)), "--tau 1.5e300: too long");
+        assert_eq!(tidy_numbers(&format!("x -{}", 1e-300)), "x -1e-300");
         // Ordinary numbers, names with digits and non-ASCII text are kept as they are.
         let plain = "scene_12.ply: 300000 points, 0.000125 apart, τ ≤ 0.5, seed 18446744073709551615";
         assert_eq!(tidy_numbers(plain), plain);
+        // So are long digit runs in file names and identifiers.
+        for name in [
+            "error: scan_20240101120000123456789.ply: no such file",
+            "error: 1234567890123456789012.obj: no such file",
+            "a/123456789012345678901234/b.ply",
+            "id-1234567890123456789012345",
+            "run1234567890123456789012345",
+        ] {
+            assert_eq!(tidy_numbers(name), name);
+        }
     }
 
     #[test]

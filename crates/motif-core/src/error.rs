@@ -108,7 +108,6 @@ impl Error {
                     | std::io::ErrorKind::InvalidData
                     | std::io::ErrorKind::UnexpectedEof
                     | std::io::ErrorKind::IsADirectory
-                    | std::io::ErrorKind::InvalidInput
             ),
             _ => true,
         }

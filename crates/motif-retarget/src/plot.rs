@@ -175,7 +175,7 @@ pub fn plot_offsets(analysis: &OffsetAnalysis, title: &str, path: &Path) -> Resu
                 name[a], name[b], analysis.bin_size
             );
             draw_projection(&square, analysis, a, b, &caption, extent, path)?;
-            let (bars, text) = right.split_vertically(430);
+            let (bars, text) = right.split_vertically(400);
             draw_bars(&bars, analysis, path)?;
             return draw_text(&text, analysis, title, path);
         }

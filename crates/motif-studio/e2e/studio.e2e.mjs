@@ -252,8 +252,9 @@ try {
   await page.click('#open-btn');
   st = await until(page, (s) => s.name === 'facade_scan.ply' && s.busy === null);
   check((await page.evaluate(() => window.motif.state.upAxis)) === 'y', 'a PLY opens Y-up');
-  const meshOnly = await page.evaluate(() => ['find-offsets', 'export', 'undo'].map((id) => document.getElementById(id).disabled));
-  check(meshOnly.every((d) => d), `a point cloud leaves the mesh-only buttons off (Find offsets, Export, Undo: ${meshOnly})`);
+  const meshOnly = await page.evaluate(() => ['find-offsets', 'export-resized', 'undo', 'export'].map((id) => document.getElementById(id).disabled));
+  check(meshOnly[0] && meshOnly[1] && meshOnly[2] && !meshOnly[3],
+    `a point cloud leaves the mesh-only buttons off (Find offsets, resize Export, Undo: ${meshOnly.slice(0, 3)}) and Export on (${!meshOnly[3]}: a cloud can be written in another format)`);
   await page.fill('#detections-path', 'RESULT.json');
   await page.click('#load-detections');
   st = await until(page, (s) => s.detections !== null);

@@ -307,6 +307,9 @@ pub enum ServerMessage {
     Saved {
         /// Paths written, relative to the root.
         paths: Vec<String>,
+        /// What was left out and why (a deformed model's annotation beside an STL).
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        notes: Vec<String>,
     },
     /// The handle set was precomputed.
     Handles {

@@ -428,7 +428,7 @@ fn save_json_document(
     let file = s.sandbox.resolve_write(path, &s.inputs)?;
     check_fresh(&file, path, overwrite)?;
     write(&file)?;
-    Ok(vec![Out::Text(ServerMessage::Saved { paths: vec![s.sandbox.display(&file)] })])
+    Ok(vec![Out::Text(ServerMessage::Saved { paths: vec![s.sandbox.display(&file)], notes: Vec::new() })])
 }
 
 fn handle_regions(handles: &[HandleSpec]) -> Result<Vec<Handle>> {
@@ -690,6 +690,7 @@ pub fn export(
     check_fresh(&file, path, overwrite)?;
     Format::from_path(&file)?;
     let mut written = Vec::new();
+    let mut notes = Vec::new();
     match source {
         ExportSource::Deformed => {
             let deformed = matches!((&s.deform, &loaded.mesh), (Some(d), Some(_)) if d.solved);
@@ -702,8 +703,19 @@ pub fn export(
             };
             // A deformed model's annotation names its regions by the vertices they hold on the
             // rest shape: its boxes and spheres no longer hold the moved parts, and the export
-            // could not be opened with its annotation again.
+            // could not be opened with its annotation again. STL keeps no vertex order (its
+            // reader welds corners), so a deformed STL goes without it, and says so.
+            let stl = Format::from_path(&file)? == Format::Stl;
             let annotation = match (s.annotation.as_ref().filter(|_| model.is_mesh()), &loaded.mesh) {
+                (Some(_), Some(_)) if deformed && stl => {
+                    notes.push(format!(
+                        "{}: the annotation is not written beside a deformed STL (STL keeps no vertex \
+                         order, which the deformed model's regions are named by); export OBJ, PLY, \
+                         OFF or GLB to keep it",
+                        s.sandbox.display(&file)
+                    ));
+                    None
+                }
                 (Some(a), Some(rest)) if deformed => Some(motif_deform::regions_as_vertices(a, rest)?),
                 (a, _) => a.cloned(),
             };
@@ -768,7 +780,7 @@ pub fn export(
     }
     // Read back before the lock goes, so that another session cannot have replaced the files.
     drop(writes);
-    out.insert(0, Out::Text(ServerMessage::Saved { paths: written }));
+    out.insert(0, Out::Text(ServerMessage::Saved { paths: written, notes }));
     Ok(out)
 }
 

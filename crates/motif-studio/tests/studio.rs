@@ -294,7 +294,7 @@ async fn files_outside_the_root_cannot_be_read_or_written() {
     // A write inside the root works and is read back.
     send(&mut ws, json!({"type": "export", "path": "copy.ply"})).await;
     match next_text(&mut ws).await {
-        ServerMessage::Saved { paths } => assert_eq!(paths, vec!["copy.ply".to_string()]),
+        ServerMessage::Saved { paths, .. } => assert_eq!(paths, vec!["copy.ply".to_string()]),
         other => panic!("expected saved, got {other:?}"),
     }
     send(&mut ws, json!({"type": "export", "path": "copy.ply"})).await;
@@ -504,7 +504,7 @@ async fn detections_load_from_a_result_file() {
     // extension, and not over the file they were loaded from.
     send(&mut ws, json!({"type": "save_detections", "path": "saved.json"})).await;
     match next_text(&mut ws).await {
-        ServerMessage::Saved { paths } => assert_eq!(paths, vec!["saved.json"]),
+        ServerMessage::Saved { paths, .. } => assert_eq!(paths, vec!["saved.json"]),
         other => panic!("expected saved, got {other:?}"),
     }
     let loaded = motif_detect::DetectionResult::read(&s.root.join("RESULT.json")).unwrap();
@@ -601,6 +601,55 @@ async fn handles_added_after_a_drag_keep_the_deformation() {
     expect_error(next_text(&mut ws).await, "2 transforms for 1 handles");
 }
 
+/// A deformed model exported with its annotation opens with it again: the regions are named by
+/// vertex, since the windmill's blade boxes no longer hold the bent blades (the export used to
+/// reopen without its annotation). An STL, which keeps no vertex order, goes without it and says
+/// so.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_deformed_export_reopens_with_its_annotation() {
+    let s = start().await;
+    let mut ws = connect(&s.url).await;
+    open_example(&mut ws, "windmill").await;
+    // The tower's foot (y = 0) held, the top blade's tip (y ≈ 14) pushed back by 1.5.
+    let foot = json!({"balls": [{"center": [0.0, 0.0, 0.0], "radius": 1.5}]});
+    let tip = json!({"balls": [{"center": [0.0, 14.0, 2.0], "radius": 1.0}]});
+    send(&mut ws, json!({"type": "set_handles", "handles": [foot, tip]})).await;
+    handles_reply(&mut ws, 2).await;
+    let push = translation([0.0, 0.0, -1.5]);
+    send(&mut ws, json!({"type": "drag", "seq": 1, "transforms": [translation([0.0; 3]), push]})).await;
+    next_frame(&mut ws, 1).await;
+    send(&mut ws, json!({"type": "export", "path": "bent.obj"})).await;
+    match next_text(&mut ws).await {
+        ServerMessage::Saved { paths, notes } => {
+            assert_eq!(paths, vec!["bent.obj", "bent.sym.json"]);
+            assert!(notes.is_empty(), "{notes:?}");
+        }
+        other => panic!("expected saved, got {other:?}"),
+    }
+    send(&mut ws, json!({"type": "export", "path": "bent.stl"})).await;
+    match next_text(&mut ws).await {
+        ServerMessage::Saved { paths, notes } => {
+            assert_eq!(paths, vec!["bent.stl"]);
+            assert!(notes.iter().any(|n| n.contains("not written beside a deformed STL")), "{notes:?}");
+        }
+        other => panic!("expected saved, got {other:?}"),
+    }
+    send(&mut ws, json!({"type": "open", "path": "bent.obj"})).await;
+    match next_text(&mut ws).await {
+        ServerMessage::Model { annotation, warnings, .. } => {
+            assert!(annotation.is_some(), "the export opens with its annotation: {warnings:?}");
+        }
+        other => panic!("expected the model, got {other:?}"),
+    }
+    // The rest shape's annotation itself does not fit the bent windmill: what the pinning is for.
+    let bent = motif_core::io::read(&s.root.join("bent.obj")).unwrap().mesh();
+    let rest = motif_core::procedural::generate("windmill", 0).unwrap().structure.symmetry;
+    assert!(
+        motif_deform::resolve_annotation(&bent, &rest).is_err(),
+        "the drag should move a blade out of its box"
+    );
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn building_the_deformation_session_can_be_cancelled() {
     let s = start().await;
@@ -683,7 +732,7 @@ async fn an_export_whose_annotation_is_refused_writes_nothing() {
     // Another format beside the model: the annotation read with it already says the same.
     send(&mut ws, json!({"type": "export", "path": "w.ply"})).await;
     match next_text(&mut ws).await {
-        ServerMessage::Saved { paths } => assert_eq!(paths, vec!["w.ply".to_string()]),
+        ServerMessage::Saved { paths, .. } => assert_eq!(paths, vec!["w.ply".to_string()]),
         other => panic!("expected saved, got {other:?}"),
     }
     assert_eq!(std::fs::read_to_string(s.root.join("w.sym.json")).unwrap(), annotation, "input kept");
@@ -701,7 +750,7 @@ async fn exports_can_be_sent_back_for_download() {
     let n = open_example(&mut ws, "fan").await;
     send(&mut ws, json!({"type": "export", "path": "fan-out.ply", "download": true})).await;
     match next_text(&mut ws).await {
-        ServerMessage::Saved { paths } => assert_eq!(paths[0], "fan-out.ply"),
+        ServerMessage::Saved { paths, .. } => assert_eq!(paths[0], "fan-out.ply"),
         other => panic!("expected saved, got {other:?}"),
     }
     let file = match next(&mut ws).await {
@@ -797,13 +846,13 @@ async fn an_annotation_that_does_not_fit_is_refused_and_an_identical_one_beside_
     }
     send(&mut ws, json!({"type": "export", "path": "out.ply"})).await;
     match next_text(&mut ws).await {
-        ServerMessage::Saved { paths } => assert_eq!(paths, vec!["out.ply", "out.sym.json"]),
+        ServerMessage::Saved { paths, .. } => assert_eq!(paths, vec!["out.ply", "out.sym.json"]),
         other => panic!("expected saved, got {other:?}"),
     }
     let side = std::fs::read(s.root.join("out.sym.json")).unwrap();
     send(&mut ws, json!({"type": "export", "path": "out.glb"})).await;
     match next_text(&mut ws).await {
-        ServerMessage::Saved { paths } => assert_eq!(paths, vec!["out.glb"]),
+        ServerMessage::Saved { paths, .. } => assert_eq!(paths, vec!["out.glb"]),
         other => panic!("expected saved, got {other:?}"),
     }
     assert_eq!(std::fs::read(s.root.join("out.sym.json")).unwrap(), side);

@@ -178,7 +178,8 @@ function setBusy(job) {
 }
 // Deforming and resizing need a triangle mesh: their buttons wait for one (a point cloud, or no
 // model yet, leaves them off rather than failing when clicked).
-const MESH_ONLY = new Set(['undo', 'redo', 'reset', 'delete-handle', 'export', 'find-offsets', 'export-resized']);
+// Export stays on: a point cloud can be written in another format.
+const MESH_ONLY = new Set(['undo', 'redo', 'reset', 'delete-handle', 'find-offsets', 'export-resized']);
 
 function onText(m) {
   // A request that succeeds makes the errors before it moot ("open a model first", "nothing
@@ -209,7 +210,11 @@ function onText(m) {
       if (m.job === 'set_handles') handlesFailed();
       break;
     case 'annotation': setBusy(null); onAnnotation(m); break;
-    case 'saved': setBusy(null); state.saved.push(...m.paths); message(`wrote ${m.paths.join(', ')}`); send({ type: 'list_files' }); break;
+    case 'saved':
+      setBusy(null); state.saved.push(...m.paths); message(`wrote ${m.paths.join(', ')}`);
+      for (const n of m.notes || []) message(n, true);
+      send({ type: 'list_files' });
+      break;
     case 'handles': onHandles(m); break;
     case 'deformed': onDeformed(m); break;
     case 'offsets': setBusy(null); onOffsets(m); break;
@@ -282,6 +287,7 @@ function onModel(m) {
   $('steps').replaceChildren(); $('resize-info').textContent = ''; $('resize-warning').hidden = true; $('detections-info').textContent = ''; $('deform-info').textContent = '';
   $('symmetry-info').textContent = '';
   if (retargetObject) { scene.remove(retargetObject); retargetObject.geometry.dispose(); retargetObject = null; }
+  overlays.handles.visible = true; // hidden while a resized model covered the original
   gizmo.detach();
   if (m.annotation) onAnnotation({ annotation: m.annotation, groups: [], max_residual: null, ok: true, ms: 0 });
 }
@@ -930,7 +936,7 @@ function onOffsets(m) {
     row.className = 'row';
     // From the fewest cells a resize keeps (the server's bound) to twice the model's cells, at
     // least 6 and at most 64 (the server's limit); the number field takes any value in range.
-    const lo = (m.min_steps && m.min_steps[k] != null) ? m.min_steps[k] : -3;
+    const lo = Math.max(-64, (m.min_steps && m.min_steps[k] != null) ? m.min_steps[k] : -3);
     const hi = Math.min(64, Math.max(6, 2 * (m.cells[k] || 0)));
     row.innerHTML = `<label title="cells to add along this offset (negative removes)">offset ${k}: ${v.length().toPrecision(3)} units, ${m.cells[k]} cell(s) <input type="range" id="step-${k}" min="${lo}" max="${hi}" step="1" value="0"><input type="number" id="step-${k}-value" min="${lo}" max="${hi}" step="1" value="0" style="width:4em"></label>`;
     steps.append(row);
@@ -987,8 +993,7 @@ $('show-original').onchange = () => {
   if (object && object.visible) placeGizmo(); else gizmo.detach();
   requestRender();
 };
-// Leaving or reloading the page loses the deformation, the resize and unsaved detections: the
-// browser asks first.
+// Leaving or reloading the page loses the deformation and the resize: the browser asks first.
 window.addEventListener('beforeunload', (ev) => {
   if (isDeformed() || retargetObject) { ev.preventDefault(); ev.returnValue = ''; }
 });

@@ -285,9 +285,11 @@ pub fn studio(a: crate::cli::BenchStudioArgs, g: &GlobalArgs) -> anyhow::Result<
     if a.steps == 0 {
         return Err(crate::output::bad_input("--steps 0: the benchmark needs at least one drag step"));
     }
-    if !(200..=8192).contains(&a.width) || !(200..=8192).contains(&a.height) {
+    // The side panel takes 330 pixels of the width; the 3D view needs the rest.
+    if !(480..=8192).contains(&a.width) || !(200..=8192).contains(&a.height) {
         return Err(crate::output::bad_input(format!(
-            "--width {} --height {}: the window must be 200 to 8192 pixels each way",
+            "--width {} --height {}: the window must be 480 to 8192 pixels wide (the side panel takes \
+             330) and 200 to 8192 high",
             a.width, a.height
         )));
     }

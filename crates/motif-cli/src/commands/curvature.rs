@@ -87,7 +87,7 @@ pub fn run(a: CurvatureArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     })?;
     let ms = ms_since(t);
     let described = match neighbourhood {
-        Neighbourhood::Radius(r) => format!("radius {r}"),
+        Neighbourhood::Radius(r) => crate::output::tidy_numbers(&format!("radius {r}")),
         Neighbourhood::Knn(k) => format!("{k} nearest points"),
         Neighbourhood::Rings(n) => format!("{n} rings"),
     };

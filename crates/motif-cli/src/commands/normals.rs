@@ -19,7 +19,9 @@ struct NormalsReport {
     method: &'static str,
     neighbours: usize,
     orientation: String,
-    /// Points whose neighbours coincide or lie on one line: their normal is arbitrary.
+    /// Points with no determined normal: on a point cloud, those whose neighbours coincide or
+    /// lie on one line (their normal is arbitrary); on a mesh, vertices on no face of non-zero
+    /// area (written as 0, 0, 0).
     undetermined: usize,
     ms: f64,
 }
@@ -52,7 +54,7 @@ pub fn run(a: NormalsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let use_mesh = model.is_mesh() && !a.from_points;
     // Options that only point clouds use are said to be ignored, not silently dropped.
     let point_options: Vec<&str> = [
-        (a.k != 16, "-k"),
+        (a.k != crate::cli::NORMALS_K, "-k"),
         (!matches!(a.orientation, OrientationArg::Consistent), "--orientation"),
         (a.viewpoint.is_some(), "--viewpoint"),
     ]

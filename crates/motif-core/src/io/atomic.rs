@@ -46,7 +46,15 @@ pub fn write_atomic(path: &Path, f: impl FnOnce(&mut dyn Write) -> io::Result<()
         let file = w.into_inner().map_err(|e| e.into_error())?;
         file.sync_all()?;
         drop(file);
-        fs::rename(&guard.path, path)
+        // Under the registry's lock: an interrupt removes the temporary file either before the
+        // rename (the target is untouched) or after it (the target is complete), never between.
+        let live = LIVE_TEMPS.lock().unwrap_or_else(|e| e.into_inner());
+        if !live.contains(&guard.path) {
+            return Err(io::Error::new(io::ErrorKind::Interrupted, "interrupted"));
+        }
+        let renamed = fs::rename(&guard.path, path);
+        drop(live);
+        renamed
     })();
     match result {
         Ok(()) => {
@@ -114,14 +122,17 @@ fn forget_temp(path: &Path) {
     live.retain(|p| p != path);
 }
 
-/// Removes the temporary files of the writes in progress. For a program's interrupt handler
-/// (Ctrl-C, SIGTERM), which ends the process without running the writers' own clean-up: a
+/// Removes the temporary files of the writes in progress, then runs `then` (which ends the
+/// process) before any new write can start or a write in progress can register or rename its
+/// file: the registry stays locked meanwhile. For a program's interrupt handler (Ctrl-C,
+/// SIGTERM), which ends the process without running the writers' own clean-up: a
 /// `.NAME.PID.N.tmp` of a large output was left behind. The targets are untouched.
-pub fn remove_temporary_files() {
-    let live = std::mem::take(&mut *LIVE_TEMPS.lock().unwrap_or_else(|e| e.into_inner()));
-    for p in live {
+pub fn remove_temporary_files_and(then: impl FnOnce()) {
+    let mut live = LIVE_TEMPS.lock().unwrap_or_else(|e| e.into_inner());
+    for p in live.drain(..) {
         let _ = fs::remove_file(p);
     }
+    then();
 }
 
 /// Creates `.<name>.<pid>.<n>.tmp` in `dir`, with a name no other writer (thread or process) uses.
@@ -131,11 +142,16 @@ fn create_temp(dir: &Path, name: &str) -> io::Result<(File, TempGuard)> {
     loop {
         let n = COUNTER.fetch_add(1, Ordering::Relaxed);
         let path = dir.join(format!(".{name}.{pid}.{n}.tmp"));
-        match OpenOptions::new().write(true).create_new(true).open(&path) {
-            Ok(file) => {
-                LIVE_TEMPS.lock().unwrap_or_else(|e| e.into_inner()).push(path.clone());
-                return Ok((file, TempGuard { path, armed: true }));
-            }
+        // Registered before it exists, so that no file is made that an interrupt would miss.
+        let mut live = LIVE_TEMPS.lock().unwrap_or_else(|e| e.into_inner());
+        live.push(path.clone());
+        let opened = OpenOptions::new().write(true).create_new(true).open(&path);
+        if opened.is_err() {
+            live.retain(|p| p != &path);
+        }
+        drop(live);
+        match opened {
+            Ok(file) => return Ok((file, TempGuard { path, armed: true })),
             // A leftover of an earlier process with the same pid: try the next number.
             Err(e) if e.kind() == io::ErrorKind::AlreadyExists => continue,
             Err(e) => return Err(e),

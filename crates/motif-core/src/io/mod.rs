@@ -39,7 +39,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-pub use atomic::{remove_temporary_files, write_atomic};
+pub use atomic::{remove_temporary_files_and, write_atomic};
 pub use image::write_png_rgb;
 
 use crate::error::Position;
@@ -202,14 +202,19 @@ pub fn read(path: &Path) -> Result<Model> {
         return Err(Error::io(path, e));
     }
     let format = Format::from_path(path)?;
-    // A device or FIFO (`/dev/zero`, a named pipe) may never end: reading one grew to 7.5 GB
-    // of memory, or blocked forever.
-    if std::fs::metadata(path).is_ok_and(|m| !m.is_file()) {
-        let e = std::io::Error::new(
-            std::io::ErrorKind::InvalidInput,
-            "not a regular file (a device, FIFO or socket): save the data to a file first",
-        );
-        return Err(Error::io(path, e));
+    // A device (`/dev/zero`) may never end: reading one grew to 7.5 GB of memory. A named pipe
+    // (`<(cmd)`) ends when its writer does, and is read.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if let Ok(t) = std::fs::metadata(path).map(|m| m.file_type())
+            && (t.is_char_device() || t.is_block_device() || t.is_socket())
+        {
+            return Err(Error::InvalidInput(format!(
+                "{}: a device or socket, not a file: save the data to a file first",
+                path.display()
+            )));
+        }
     }
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     let dir = match path.parent() {

@@ -211,7 +211,8 @@ fn weld(
 /// included) accepts.
 pub(super) fn check(triangles: &[[u32; 3]], positions: &[[f64; 3]], encoding: StlEncoding) -> Result<()> {
     if encoding == StlEncoding::Binary
-        && let Some(c) = positions.iter().flatten().find(|c| !(**c as f32).is_finite())
+        && let Some(c) =
+            triangles.iter().flatten().flat_map(|&i| positions[i as usize]).find(|c| !(*c as f32).is_finite())
     {
         return Err(Error::InvalidInput(format!(
             "coordinate {c:e} does not fit the f32 coordinates of binary STL (at most about 3.4e38): \

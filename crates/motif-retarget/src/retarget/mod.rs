@@ -672,7 +672,7 @@ impl RetargetSession {
     /// directions, and for the dense baseline, whose voxels are not one per offset (its bound
     /// depends on all the steps at once).
     pub fn min_steps(&self) -> [i32; 3] {
-        let minimum = if self.options.boundary == BoundaryMode::Preserve { 2 } else { 1 };
+        let minimum = self.min_voxels(-1) as i64;
         std::array::from_fn(|a| {
             if a >= self.principal_offsets.len() || self.options.method == RetargetMethod::Dense {
                 0
@@ -680,6 +680,12 @@ impl RetargetSession {
                 (minimum - self.grid.dims[a] as i64).min(0) as i32
             }
         })
+    }
+
+    /// The fewest voxels a direction keeps under `steps` along it: 2 when shrinking with the ends
+    /// preserved (the first and the last cell), else 1.
+    fn min_voxels(&self, steps: i64) -> usize {
+        if steps < 0 && self.options.boundary == BoundaryMode::Preserve { 2 } else { 1 }
     }
 
     /// Voxels of the input grid per axis (U_in, V_in, W_in).
@@ -739,7 +745,7 @@ impl RetargetSession {
             let s = grid_steps_wide[a];
             let n_in = self.grid.dims[a];
             let n_out = n_in as i64 + s;
-            let minimum = if s < 0 && self.options.boundary == BoundaryMode::Preserve { 2 } else { 1 };
+            let minimum = self.min_voxels(s);
             if s < 0 && n_out < minimum as i64 && self.options.method == RetargetMethod::Dense {
                 return Err(RetargetError::DenseShrinkTooFar {
                     axis: ["x", "y", "z"][a],
