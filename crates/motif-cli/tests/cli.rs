@@ -1860,6 +1860,17 @@ fn failures_found_by_the_bad_input_audit() {
     assert_no_stray_files(dir);
 }
 
+/// Whether this process ignores `signal` (the `SigIgn` mask of /proc/self/status); children
+/// inherit that.
+#[cfg(unix)]
+fn ignored_here(signal: i32) -> bool {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| s.lines().find_map(|l| l.strip_prefix("SigIgn:")).map(|m| m.trim().to_string()))
+        .and_then(|m| u64::from_str_radix(&m, 16).ok())
+        .is_some_and(|mask| mask >> (signal - 1) & 1 == 1)
+}
+
 /// Ctrl-C, SIGTERM or SIGHUP during a write (signalled once the temporary file
 /// `.OUT.PID.N.tmp` exists) leaves no temporary file behind, and the process dies of the signal,
 /// so that a shell loop stops as it does for other programs.
@@ -1893,7 +1904,13 @@ fn an_interrupted_write_leaves_no_temporary_file() {
         assert!(!temps().is_empty(), "{flag}: the write never started");
         let _ = Command::new("kill").args([flag, &child.id().to_string()]).status();
         let o = child.wait_with_output().unwrap();
-        assert_eq!(o.status.signal(), Some(number), "{flag}: {:?} {}", o.status, stderr(&o));
+        if ignored_here(number) {
+            // Inherited as ignored (a test run started with `&` from a script ignores SIGINT):
+            // motif keeps ignoring it, as any program does, and finishes the write.
+            assert_eq!(o.status.code(), Some(0), "{flag} (ignored here): {:?} {}", o.status, stderr(&o));
+        } else {
+            assert_eq!(o.status.signal(), Some(number), "{flag}: {:?} {}", o.status, stderr(&o));
+        }
         assert!(temps().is_empty(), "{flag}: {:?}", temps());
     }
 }
