@@ -18,6 +18,11 @@ impl std::fmt::Display for BadInput {
 
 impl std::error::Error for BadInput {}
 
+/// `n` and the noun in the number it needs: `count(1, "class", "classes")` is "1 class".
+pub fn count(n: usize, one: &str, many: &str) -> String {
+    format!("{n} {}", if n == 1 { one } else { many })
+}
+
 /// Shorthand: `return Err(bad_input(...))`.
 pub fn bad_input(msg: impl Into<String>) -> anyhow::Error {
     anyhow::Error::new(BadInput(msg.into()))
@@ -365,6 +370,9 @@ pub enum OutputKind {
     PointCloud,
     /// A picture, written as PNG.
     Png,
+    /// A JSON document: any name but one whose extension names a model format or PNG, which
+    /// would be a mix-up with another output (`--structure shelf.obj`).
+    Json,
 }
 
 /// Checks before any work that each output's extension names a format Motif writes for what it
@@ -379,6 +387,15 @@ pub fn check_output_formats(outputs: &[(Option<&Path>, OutputKind)]) -> anyhow::
                 if kind == OutputKind::PointCloud && format == motif_core::io::Format::Stl {
                     return Err(bad_input(format!(
                         "{}: STL holds only triangles, not a point cloud (use .ply, .obj, .off, .gltf or .glb)",
+                        path.display()
+                    )));
+                }
+            }
+            OutputKind::Json => {
+                let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+                if motif_core::io::Format::from_path(path).is_ok() || ext == "png" {
+                    return Err(bad_input(format!(
+                        "{}: this output is JSON, but .{ext} names another kind of file (give it a .json name)",
                         path.display()
                     )));
                 }

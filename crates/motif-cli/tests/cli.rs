@@ -569,7 +569,7 @@ fn align_recovers_a_known_motion_and_demo_runs() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("point-to-point instead"), "{}", stderr(&o));
     let r = json_of(&o);
-    assert_eq!(r["options"]["metric"], "PointToPoint", "{r}");
+    assert_eq!(r["options"]["metric"], "point_to_point", "{r}");
     assert!(r["rmse"].as_f64().unwrap() > 0.01, "the chair does not lie on a line: {r}");
     // The report on stdout: stdout is JSON alone, and the walk-through goes to stderr.
     let o = motif(&["demo", "--out", "demo", "--json"], d.path());
@@ -1816,7 +1816,7 @@ fn failures_found_by_the_bad_input_audit() {
     let mut k1: Vec<f64> = csv
         .lines()
         .skip(1)
-        .filter(|l| l.ends_with(",Fitted"))
+        .filter(|l| l.ends_with(",fitted"))
         .map(|l| l.split(',').nth(4).unwrap().parse().unwrap())
         .collect();
     k1.sort_by(f64::total_cmp);
@@ -1857,6 +1857,64 @@ fn failures_found_by_the_bad_input_audit() {
     let o = motif(&["bench", "studio", "--example", "nope"], dir);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("no such example"), "{}", stderr(&o));
+    assert_no_stray_files(dir);
+}
+
+/// Later leftovers of the bad-input audit: JSON written under a model's name, the deform error
+/// that named library options, and Rust spellings in reports.
+#[test]
+fn reports_and_errors_speak_the_command_line() {
+    let d = tmp();
+    let dir = d.path();
+    // `--structure s.ply` wrote JSON into a .ply; now refused before anything is written.
+    let o = motif(&["example", "shelf", "s.obj", "--structure", "s.ply"], dir);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("s.ply") && stderr(&o).contains(".json"), "{}", stderr(&o));
+    assert!(files_in(dir).is_empty(), "{:?}", files_in(dir));
+    let o =
+        motif(&["example", "windmill", "w.obj", "--annotation", "w.json", "--handles", "h.json", "-q"], dir);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    // A handle weight so large that the factorisation fails is named by its flag.
+    let o = motif(
+        &[
+            "deform",
+            "w.obj",
+            "--symmetry",
+            "w.json",
+            "--handles",
+            "h.json",
+            "-o",
+            "d.obj",
+            "--alpha",
+            "1e308",
+        ],
+        dir,
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--alpha") && !stderr(&o).contains("regularization"), "{}", stderr(&o));
+    assert!(!dir.join("d.obj").exists());
+    // Enumerations in reports are spelled as the flags spell them, not as Rust names them.
+    let o = motif(&["normals", "w.obj", "n.ply", "--json", "n.json", "-q"], dir);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("n.json")).unwrap()).unwrap();
+    assert_eq!(r["orientation"], "consistent", "{r}");
+    let o = motif(&["info", "w.obj", "--json", "i.json"], dir);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("i.json")).unwrap()).unwrap();
+    assert_eq!(r["format"], "obj", "{r}");
+    let o = motif(&["example", "shelf", "s.obj", "-q"], dir);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let o = motif(&["retarget", "s.obj", "--steps", "1,0", "-o", "r.obj", "--json", "r.json"], dir);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("r.json")).unwrap()).unwrap();
+    assert_eq!(r["retarget"]["method"], "offsets");
+    assert_eq!(r["retarget"]["termination"], "converged");
+    let cycles = r["retarget"]["cycles"].as_u64().unwrap();
+    let said = format!("({cycles} {})", if cycles == 1 { "cycle" } else { "cycles" });
+    assert!(stdout(&o).contains(&said) && stdout(&o).contains("MRF (offsets)"), "{}", stdout(&o));
     assert_no_stray_files(dir);
 }
 

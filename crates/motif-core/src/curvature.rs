@@ -46,6 +46,7 @@ use crate::{Error, Result};
 
 /// Which points form the neighbourhood a jet is fitted to.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Neighbourhood {
     /// The `k` nearest points, the point itself included (at least 6, the number of jet
     /// coefficients; 15 is CGAL's example and the default).
@@ -64,6 +65,7 @@ pub enum Neighbourhood {
 
 /// Weights of the neighbours in the least-squares fit.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Weighting {
     /// All neighbours weigh 1 (Cazals–Pouget's and CGAL's default).
     Uniform,
@@ -79,6 +81,7 @@ pub enum Weighting {
 
 /// The frame in which the height function is fitted.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum FittingFrame {
     /// `z` = the least-variance axis of the neighbourhood (Cazals–Pouget §4.2). Robust to noisy
     /// or approximate reference normals; the reference normal only chooses the sign.
@@ -150,6 +153,7 @@ impl CurvatureOptions {
 
 /// How the curvature of one point was obtained.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum CurvatureStatus {
     /// The jet was fitted and the reference normal fixed the sign.
     Fitted,
@@ -161,6 +165,18 @@ pub enum CurvatureStatus {
     /// The neighbours do not span a surface (collinear, coincident) so the fit is singular:
     /// curvature set to 0.
     Degenerate,
+}
+
+impl CurvatureStatus {
+    /// How files and reports spell it: `fitted`, `unoriented`, `too_few_neighbours`, `degenerate`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            CurvatureStatus::Fitted => "fitted",
+            CurvatureStatus::Unoriented => "unoriented",
+            CurvatureStatus::TooFewNeighbours => "too_few_neighbours",
+            CurvatureStatus::Degenerate => "degenerate",
+        }
+    }
 }
 
 /// Principal curvatures and directions at one point.

@@ -40,6 +40,7 @@ use crate::{Error, Result};
 
 /// The distance ICP minimises.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum IcpMetric {
     /// Squared Euclidean distance to the matched target point (Besl & McKay 1992). Needs no
     /// normals; converges linearly. The default.
@@ -52,6 +53,7 @@ pub enum IcpMetric {
 
 /// Which motions ICP may apply to the source.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum IcpMotion {
     /// Rotation and translation. The default.
     #[default]

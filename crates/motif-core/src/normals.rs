@@ -39,6 +39,7 @@ use crate::{Error, Result};
 
 /// How the sign of the estimated normals is chosen.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Orientation {
     /// Consistent over the kNN graph (Hoppe et al. 1992 minimum spanning tree), each connected
     /// component turned so its normals point outward (see the module documentation). The default.
@@ -53,6 +54,7 @@ pub enum Orientation {
 
 /// Edge weights of the spanning tree along which [`Orientation::Consistent`] propagates signs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum GraphWeight {
     /// `1 − |nᵢ·nⱼ|`, exactly Hoppe et al. 1992.
     Hoppe,

@@ -48,6 +48,7 @@ use crate::maxflow::{Capacity, Graph, Segment};
 
 /// The order in which labels are tried within a cycle.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum LabelOrder {
     /// 0, 1, …, L−1 in every cycle (GCO's default).
     #[default]
@@ -63,6 +64,7 @@ pub enum LabelOrder {
 
 /// Which labels a cycle tries.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum CycleStrategy {
     /// Every cycle tries every label (BVZ 2001).
     Full,
@@ -90,6 +92,7 @@ pub enum CycleStrategy {
 
 /// Which of several equally good cuts an expansion move applies.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum TieBreak {
     /// Switch every site that some minimum cut switches (the largest α region; GCO's choice:
     /// its `applyNewLabeling` switches the variables that read 0, and its max-flow reports free
@@ -140,6 +143,7 @@ impl Default for AlphaExpansionOptions {
 
 /// Why the expansion loop stopped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Termination {
     /// No move can lower the energy any more (a whole cycle, or with [`CycleStrategy::Queue`] a
     /// pass of the outermost queue after every focused queue, found nothing): the labelling is a
@@ -147,6 +151,16 @@ pub enum Termination {
     Converged,
     /// [`AlphaExpansionOptions::max_cycles`] cycles were run.
     MaxCycles,
+}
+
+impl Termination {
+    /// How reports spell it: `converged` or `max_cycles`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Termination::Converged => "converged",
+            Termination::MaxCycles => "max_cycles",
+        }
+    }
 }
 
 /// The outcome of alpha-expansion.

@@ -131,6 +131,7 @@ impl_capacity_float!(f64);
 
 /// Which side of the minimum cut a node lies on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Segment {
     /// The source side (the node is reachable from the source in the residual graph, or free).
     Source,

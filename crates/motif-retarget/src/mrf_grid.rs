@@ -35,6 +35,7 @@ pub const ARGMIN_RULE: &str = "argmin_l unary[p*L + l], lowest l on ties";
 
 /// Neighbourhood of a grid site.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Connectivity {
     /// The 6 face neighbours: offsets (1,0,0), (0,1,0), (0,0,1) and their opposites.
     Six,
@@ -90,6 +91,7 @@ impl Connectivity {
 
 /// The starting labelling of a grid problem.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum InitLabels {
     /// An explicit labelling in site order (`#sites`, each < L).
     Labels(Vec<u32>),

@@ -167,7 +167,7 @@ fn write_csv(path: &Path, positions: &[[f64; 3]], pc: &[PrincipalCurvature]) -> 
         for (i, (p, c)) in positions.iter().zip(pc).enumerate() {
             writeln!(
                 w,
-                "{i},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{:?}",
+                "{i},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
                 p[0],
                 p[1],
                 p[2],
@@ -182,7 +182,7 @@ fn write_csv(path: &Path, positions: &[[f64; 3]], pc: &[PrincipalCurvature]) -> 
                 c.normal[0],
                 c.normal[1],
                 c.normal[2],
-                c.status
+                c.status.as_str()
             )?;
         }
         w.flush()

@@ -110,7 +110,19 @@ pub fn run(a: DeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             Some(s) => format!("{} with {}", a.mesh.display(), s.display()),
             None => a.mesh.display().to_string(),
         })?;
-    session.set_handles(&handles.handles).with_context(|| a.handles.display().to_string())?;
+    let alpha = options.editing.alpha;
+    session
+        .set_handles(&handles.handles)
+        .map_err(|e| match e {
+            // The library's advice names its own options; say it with this command's flag.
+            motif_deform::DeformError::Factorization(m) => anyhow::anyhow!(
+                "factorisation of the reduced system (eq. 3.4) failed: {m}; the system is singular or badly \
+                 scaled: try a smaller --alpha (this run {alpha:e}, default {:e})",
+                motif_deform::EditingOptions::default().alpha
+            ),
+            e => e.into(),
+        })
+        .with_context(|| a.handles.display().to_string())?;
     let prefactor_ms = session.stats().timings.prefactor_ms;
     let frames: Vec<Vec<[[f64; 4]; 4]>> =
         if handles.frames.is_empty() { vec![handles.transforms()] } else { handles.frames.clone() };
@@ -191,9 +203,9 @@ pub fn run(a: DeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     // Results print under --quiet too; warnings always; only the "wrote" note is quiet.
     if !crate::output::json_on_stdout(&a.json.json) {
         println!(
-            "{} vertices, {} symmetries, {} samples, {} DoF{}",
+            "{} vertices, {}, {} samples, {} DoF{}",
             report.vertices,
-            report.symmetries,
+            crate::output::count(report.symmetries, "symmetry", "symmetries"),
             report.samples,
             report.dof,
             if a.no_symmetry { " (symmetry ignored)" } else { "" }

@@ -533,7 +533,7 @@ fn retargeting(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
         let rep = &r.report;
         lines.push(format!(
             "{:<8} +2 columns, +1 row: {:>5} nodes, {:>3} labels, graph cut {:>7.1} ms, {} triangles",
-            format!("{:?}", rep.method),
+            rep.method.as_str(),
             rep.nodes,
             rep.labels,
             rep.graph_cut_ms,
@@ -574,8 +574,8 @@ fn detection(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
     let e = evaluate(&det.result, &scene.ground_truth, &EvalOptions::default())?;
     let png = d.path("facade_scan.detection.png");
     let title = format!(
-        "facade scan: {} classes found (EM + SC), F {:.3} against the ground truth",
-        det.result.classes.len(),
+        "facade scan: {} found (EM + SC), F {:.3} against the ground truth",
+        crate::output::count(det.result.classes.len(), "class", "classes"),
         e.f
     );
     motif_detect::plot::plot_detections(&scene.cloud.positions, &det.labels, &det.result, &title, &png)?;
@@ -592,8 +592,8 @@ fn detection(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
             gt_instances
         ),
         format!(
-            "found {} classes ({} instances) from {} features in {:.1} s",
-            det.result.classes.len(),
+            "found {} ({} instances) from {} features in {:.1} s",
+            crate::output::count(det.result.classes.len(), "class", "classes"),
             det.report.instances_per_class.iter().map(|n| n.to_string()).collect::<Vec<_>>().join(" + "),
             det.report.features,
             det.report.seconds.total

@@ -107,7 +107,12 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         &inputs,
         g.force,
     )?;
-    crate::output::check_output_formats(&[(a.plot.as_deref(), crate::output::OutputKind::Png)])?;
+    crate::output::check_output_formats(&[
+        (a.plot.as_deref(), crate::output::OutputKind::Png),
+        (Some(&a.output), crate::output::OutputKind::Json),
+        (a.as_symmetry.as_deref(), crate::output::OutputKind::Json),
+        (a.json.json.as_deref(), crate::output::OutputKind::Json),
+    ])?;
     if let Some(p) = &a.labels {
         if !p.extension().is_some_and(|e| e.eq_ignore_ascii_case("ply")) {
             return Err(crate::output::bad_input(format!(
@@ -158,10 +163,14 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     if let Some(p) = &a.plot {
         let cloud = detection.samples.as_ref().unwrap_or(&model.vertices);
         let title = format!(
-            "{}: {} classes, {} instances ({})",
+            "{}: {}, {} ({})",
             a.input.display(),
-            detection.result.classes.len(),
-            detection.result.classes.iter().map(|c| c.instances.len()).sum::<usize>(),
+            crate::output::count(detection.result.classes.len(), "class", "classes"),
+            crate::output::count(
+                detection.result.classes.iter().map(|c| c.instances.len()).sum::<usize>(),
+                "instance",
+                "instances"
+            ),
             if a.no_em { "SC, no EM" } else { "EM + SC" }
         );
         motif_detect::plot::plot_detections(
@@ -190,10 +199,11 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         let r = &detection.report;
         let per: Vec<String> = r.instances_per_class.iter().map(|n| n.to_string()).collect();
         println!(
-            "{}: {} classes ({} instances) from {} points, ε = {:.4}, {} features, {} in {:.2} s",
+            "{}: {} ({} {}) from {} points, ε = {:.4}, {} features, {} in {:.2} s",
             a.input.display(),
-            detection.result.classes.len(),
+            crate::output::count(detection.result.classes.len(), "class", "classes"),
             if per.is_empty() { "no".to_string() } else { per.join(" + ") },
+            if r.instances_per_class.iter().sum::<usize>() == 1 { "instance" } else { "instances" },
             r.input_points,
             r.epsilon,
             r.features,

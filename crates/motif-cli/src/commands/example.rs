@@ -42,7 +42,12 @@ pub fn run(a: ExampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         &[],
         g.force,
     )?;
-    crate::output::check_output_formats(&[(Some(&output), crate::output::OutputKind::Model)])?;
+    crate::output::check_output_formats(&[
+        (Some(&output), crate::output::OutputKind::Model),
+        (a.structure.as_deref(), crate::output::OutputKind::Json),
+        (a.annotation.as_deref(), crate::output::OutputKind::Json),
+        (a.handles.as_deref(), crate::output::OutputKind::Json),
+    ])?;
     let ex = procedural::generate(&name, g.seed)?;
     let model = Model::from_mesh(&ex.mesh);
     super::write_model(&output, &model, &[], g, &a.encoding)?;
@@ -129,7 +134,10 @@ fn run_scene(kind: SceneKind, output: &Path, a: &ExampleArgs, g: &GlobalArgs) ->
     };
     let parts: Vec<&Path> = a.parts.iter().map(|p| p.as_path()).collect();
     check_outputs(&[Some(output), a.gt.as_deref()], &parts, g.force)?;
-    crate::output::check_output_formats(&[(Some(output), crate::output::OutputKind::PointCloud)])?;
+    crate::output::check_output_formats(&[
+        (Some(output), crate::output::OutputKind::PointCloud),
+        (a.gt.as_deref(), crate::output::OutputKind::Json),
+    ])?;
     let t = Instant::now();
     let mut scene = generate_scene(kind, &options)?;
     let seconds = t.elapsed().as_secs_f64();

@@ -46,7 +46,7 @@ pub fn run(a: InfoArgs, _g: &GlobalArgs) -> anyhow::Result<()> {
     let edges = mesh.edge_stats();
     let r = InfoReport {
         file: a.input.display().to_string(),
-        format: format!("{:?}", model.format),
+        format: model.format.name().to_string(),
         kind: if model.is_mesh() { "mesh" } else { "point cloud" },
         vertices: mesh.num_vertices(),
         faces_in_file: model.source_faces,
@@ -112,7 +112,7 @@ pub fn run(a: InfoArgs, _g: &GlobalArgs) -> anyhow::Result<()> {
         let winding =
             if r.misoriented_edges == 0 { "consistently oriented" } else { "not consistently oriented" };
         println!("  surface      {closed}, {winding}");
-        println!("  degenerate   {} triangles", r.degenerate_triangles);
+        println!("  degenerate   {}", crate::output::count(r.degenerate_triangles, "triangle", "triangles"));
     }
     let mut extras = Vec::new();
     if r.has_normals {

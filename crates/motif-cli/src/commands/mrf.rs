@@ -58,8 +58,11 @@ pub fn solve(a: MrfSolveArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     );
     println!("  energy       {} (from {} at the start)", sol.energy, sol.initial_energy);
     println!(
-        "  cycles       {} ({} moves, {} accepted; {:?})",
-        sol.cycles, sol.moves, sol.accepted_moves, sol.termination
+        "  cycles       {} ({} moves, {} accepted; {})",
+        sol.cycles,
+        sol.moves,
+        sol.accepted_moves,
+        sol.termination.as_str()
     );
     println!("  solve        {:.1} ms", sol.solve_ms);
     if sol.truncated_terms > 0 {

@@ -112,7 +112,11 @@ pub fn run(a: NormalsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         points: model.vertices.len(),
         method: if use_mesh { "area-weighted face normals" } else { "PCA over k neighbours" },
         neighbours: a.k,
-        orientation: format!("{orientation:?}"),
+        orientation: match orientation {
+            Orientation::Consistent => "consistent".to_string(),
+            Orientation::TowardsViewpoint(p) => format!("towards [{}, {}, {}]", p[0], p[1], p[2]),
+            Orientation::Unoriented => "none".to_string(),
+        },
         undetermined,
         ms,
     };

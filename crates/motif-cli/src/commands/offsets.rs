@@ -29,7 +29,11 @@ pub fn offsets(a: OffsetsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         // The verdict's own reasons (the discrete-period test decides, not the peak's share).
         match an.repetition.kind {
             Repetition::Repetitive => {
-                println!("  {} principal offsets; {}", an.principal.len(), an.repetition.summary)
+                println!(
+                    "  {}; {}",
+                    crate::output::count(an.principal.len(), "principal offset", "principal offsets"),
+                    an.repetition.summary
+                )
             }
             Repetition::NoRepetition => {
                 println!("  {}; a plain resize is all that is possible", an.repetition.summary)

@@ -16,7 +16,7 @@ use motif_retarget::retarget::{
 use serde::Serialize;
 
 use crate::cli::{AssignmentArg, GlobalArgs, RetargetArgs, RetargetMethodArg, SizeArg};
-use crate::output::{bad_input, check_outputs, maybe_json, ms_since};
+use crate::output::{bad_input, check_outputs, count, maybe_json, ms_since};
 use crate::progress::Bar;
 
 #[derive(Debug, Serialize)]
@@ -493,8 +493,14 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             println!("offset {k}: [{}, {}, {}]  steps {:+}", len(o[0]), len(o[1]), len(o[2]), steps[k]);
         }
         println!(
-            "{:?}: {} nodes, {} labels, energy {:.4} ({} cycles), graph cut {:.1} ms, total {:.1} ms",
-            r.method, r.nodes, r.labels, r.energy, r.cycles, r.graph_cut_ms, r.total_ms
+            "MRF ({}): {} nodes, {} labels, energy {:.4} ({}), graph cut {:.1} ms, total {:.1} ms",
+            r.method.as_str(),
+            r.nodes,
+            r.labels,
+            r.energy,
+            count(r.cycles, "cycle", "cycles"),
+            r.graph_cut_ms,
+            r.total_ms
         );
         println!(
             "output: {} vertices, {} triangles, {} components (input {} / {})",
@@ -525,20 +531,19 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 String::new()
             };
             println!(
-                "closing: {} openings capped ({} triangles), {} holes filled ({} triangles), {} boundary edges \
-                 left (input {}){kept}",
-                r.capped_loops,
-                r.cap_triangles,
-                r.filled_holes,
-                r.fill_triangles,
-                r.output_boundary_edges,
+                "closing: {} capped ({}), {} filled ({}), {} left (input {}){kept}",
+                count(r.capped_loops, "opening", "openings"),
+                count(r.cap_triangles, "triangle", "triangles"),
+                count(r.filled_holes, "hole", "holes"),
+                count(r.fill_triangles, "triangle", "triangles"),
+                count(r.output_boundary_edges, "boundary edge", "boundary edges"),
                 input_boundary
             );
         }
         if r.reoriented_triangles > 0 {
             println!(
-                "orientation: {} triangles turned to agree with the surface around them",
-                r.reoriented_triangles
+                "orientation: {} turned to agree with the surface around them",
+                count(r.reoriented_triangles, "triangle", "triangles")
             );
         }
     }

@@ -47,6 +47,7 @@ use crate::{Error, PointCloud, Result, TriMesh};
 
 /// A file format Motif reads and writes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Format {
     /// Wavefront OBJ (text).
     Obj,
@@ -63,6 +64,19 @@ pub enum Format {
 }
 
 impl Format {
+    /// The format's usual extension and short name, as reports spell it: `obj`, `ply`, `off`,
+    /// `stl`, `gltf`, `glb`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Obj => "obj",
+            Format::Ply => "ply",
+            Format::Off => "off",
+            Format::Stl => "stl",
+            Format::Gltf => "gltf",
+            Format::Glb => "glb",
+        }
+    }
+
     /// The format named by a path's extension (case-insensitive).
     pub fn from_path(path: &Path) -> Result<Format> {
         let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
@@ -336,6 +350,7 @@ pub fn read_point_cloud(path: &Path) -> Result<PointCloud> {
 
 /// Encoding of written PLY files.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum PlyEncoding {
     /// Human-readable text.
     Ascii,
@@ -348,6 +363,7 @@ pub enum PlyEncoding {
 
 /// Encoding of written STL files.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum StlEncoding {
     /// Binary (50 bytes per triangle, f32 coordinates).
     #[default]

@@ -111,6 +111,7 @@ pub struct Constraints<'a> {
 
 /// Where an output sample comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum SampleSource {
     /// Forced sample `i` of [`Constraints::forced`].
     Forced(usize),
@@ -194,6 +195,7 @@ const KEY_MASK: u64 = (1 << KEY_BITS) - 1;
 
 /// What an inserted point is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum SampleKind {
     /// Inserted unconditionally with [`PoissonDiscSampler::insert_forced`].
     Forced,

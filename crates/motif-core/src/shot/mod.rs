@@ -61,6 +61,7 @@ const VOLUMES: usize = 32;
 
 /// Which reference frame the descriptor is expressed in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum ShotFrame {
     /// The local reference frame of Tombari et al. 2010 (§4): rotation invariant; PCL's
     /// `SHOTLocalReferenceFrameEstimation`.
@@ -73,6 +74,7 @@ pub enum ShotFrame {
 
 /// How a vote is shared between adjacent cosine bins.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum CosineInterpolation {
     /// As PCL: the neighbouring bin is `(bin ± 1) mod 10`, so a neighbour with `cos θ ∈ (0.8, 0.9)`
     /// puts its upper share into bin 0 instead of bin 10 (and bin 10 only ever receives votes

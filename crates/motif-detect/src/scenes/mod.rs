@@ -69,6 +69,7 @@ use crate::error::{DetectError, Result};
 
 /// The kinds of benchmark scene.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum SceneKind {
     /// `scene-facade`: a facade with three window styles, balconies and doors.
     #[serde(rename = "scene-facade")]

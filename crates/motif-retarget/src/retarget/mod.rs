@@ -119,6 +119,16 @@ pub enum RetargetMethod {
     Dense,
 }
 
+impl RetargetMethod {
+    /// The name reports and the `--method` flag use: `offsets` or `dense`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            RetargetMethod::Offsets => "offsets",
+            RetargetMethod::Dense => "dense",
+        }
+    }
+}
+
 /// How the ends of the model are treated when shrinking.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
