@@ -5,11 +5,11 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
-/// Structure-aware 3D content creation: find symmetries, repeated building blocks and dominant
-/// offsets in meshes and scans, and use them to deform and resize models.
 /// Neighbours of a point-cloud normal fit (`motif normals -k`) by default.
 pub const NORMALS_K: usize = 16;
 
+/// Structure-aware 3D content creation: find symmetries, repeated building blocks and dominant
+/// offsets in meshes and scans, and use them to deform and resize models.
 #[derive(Debug, Parser)]
 #[command(name = "motif", version, propagate_version = true, arg_required_else_help = true)]
 pub struct Cli {

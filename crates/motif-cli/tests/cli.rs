@@ -44,6 +44,8 @@ fn usage_errors_exit_2_and_help_exits_0() {
     let o = motif(&["--help"], d.path());
     assert_eq!(o.status.code(), Some(0));
     assert!(stdout(&o).contains("Usage"));
+    // The first line says what Motif is (a constant's doc comment once took its place).
+    assert!(stdout(&o).starts_with("Structure-aware 3D content creation"), "{}", stdout(&o));
     let o = motif(&["no-such-command"], d.path());
     assert_eq!(o.status.code(), Some(2));
     let o = motif(&["sample", "a.obj", "b.ply"], d.path());
