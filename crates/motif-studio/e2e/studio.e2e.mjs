@@ -220,18 +220,35 @@ try {
   st = await until(page, (s, n) => s.errors.length > n && s.busy === null, errorsBefore3);
   check(/nothing resized yet/.test(st.errors[st.errors.length - 1]), `exporting before a resize: ${st.errors[st.errors.length - 1]}`);
   check(st.offsets.principal === 2 && st.totalCells === 12, `shelf: ${st.offsets.principal} principal offsets, cells ${st.cells.join(' x ')}`);
-  await page.$eval('#step-0', (el) => { el.value = '1'; el.dispatchEvent(new Event('input')); });
-  st = await until(page, (s) => s.retargetVersion > 0);
+  // A slider moved and released ('change'): one step of the undo history.
+  await page.$eval('#step-0', (el) => { el.value = '1'; el.dispatchEvent(new Event('input')); el.dispatchEvent(new Event('change')); });
+  st = await until(page, (s) => s.retargetVersion > 0 && s.undo === 1);
   check(st.totalCells === 15 && st.cells[0] === 5, `one step along offset 0: cells ${st.cells.join(' x ')} = ${st.totalCells}`);
   await shot('04-shelf-resized.png');
   // The sliders stop at the fewest cells a resize keeps (the server's bound), and that step
   // resizes without an error.
   const min1 = await page.$eval('#step-1', (el) => Number(el.min));
   const v3 = st.retargetVersion, e3 = st.errors.length;
-  await page.$eval('#step-1', (el) => { el.value = el.min; el.dispatchEvent(new Event('input')); });
-  st = await until(page, (s, v) => s.retargetVersion > v, v3);
+  await page.$eval('#step-1', (el) => { el.value = el.min; el.dispatchEvent(new Event('input')); el.dispatchEvent(new Event('change')); });
+  st = await until(page, (s, v) => s.retargetVersion > v && s.undo === 2, v3);
   check(min1 < 0 && min1 === st.offsets.minSteps[1] && st.errors.length === e3 && st.cells[1] >= 1,
     `offset 1's slider starts at ${min1} steps, which resizes to ${st.cells.join(' x ')} cells without an error`);
+  // Sizes are in the undo history with the handles: undo goes back to one step along offset 0,
+  // then to the original size (no resized model, sliders at 0); redo resizes again.
+  const sizeAfter = st.totalCells;
+  await page.click('#undo');
+  st = await until(page, (s) => s.undo === 1 && s.resizedSteps && s.resizedSteps[1] === 0 && s.busy === null);
+  const slider1 = await page.$eval('#step-1', (el) => Number(el.value));
+  check(st.totalCells === 15 && slider1 === 0, `undo: back to steps ${st.resizedSteps} (${st.totalCells} cells, offset 1's slider at ${slider1})`);
+  await page.click('#undo');
+  st = await until(page, (s) => s.undo === 0 && s.resizedSteps === null);
+  const shown = await page.evaluate(() => window.motif.resizedShown());
+  check(st.totalCells === 12 && !shown.resized && shown.original, `undo again: the original size (${st.totalCells} cells), resized model gone: ${JSON.stringify(shown)}`);
+  await page.click('#redo');
+  st = await until(page, (s) => s.redo === 1 && s.resizedSteps && s.resizedSteps[0] === 1);
+  await page.click('#redo');
+  st = await until(page, (s, m) => s.redo === 0 && s.resizedSteps && s.resizedSteps[1] === m, min1);
+  check(st.totalCells === sizeAfter, `redo twice: steps ${st.resizedSteps}, ${st.totalCells} cells as before the undos`);
   check(await leaveAsks(), 'leaving the page with a resized model asks first');
   // Detections of another scan shown on the shelf come with a warning.
   await page.fill('#detections-path', 'RESULT.json');
@@ -306,6 +323,7 @@ try {
   console.log(`FAIL ${e.message}`);
   const last = await page.evaluate(() => { const s = window.motif.state; return { name: s.name, handles: s.handles, busy: s.busy, errors: s.errors, undo: s.undo, redo: s.redo, meshVersion: s.meshVersion, saved: s.saved, downloads: s.downloads }; }).catch(() => null);
   console.log(`page state: ${JSON.stringify(last)}`);
+  if (pageErrors.length) console.log(`page errors: ${pageErrors.join('; ')}`);
   await page.screenshot({ path: join(out, 'failure.png') }).catch(() => {});
 } finally {
   await context.close();

@@ -14,7 +14,7 @@ const state = {
   connected: false, upAxis: 'y', name: null, vertices: 0, triangles: 0, isMesh: false, bbox: null, diagonal: 0,
   meshVersion: 0, handles: 0, handleSamples: [], symmetryResidual: null, restResidual: null,
   maxDisplacement: 0, lastFrameMs: null, medianFrameMs: null, lastSolveMs: null, framesReceived: 0,
-  frameTimes: [], frameLog: [], annotation: null, offsets: null, cells: null, totalCells: null, retargetVersion: 0,
+  frameTimes: [], frameLog: [], annotation: null, offsets: null, cells: null, totalCells: null, retargetVersion: 0, resizedSteps: null,
   retargetVertices: 0, detections: null, busy: null, progress: null, saved: [], errors: [], released: 0,
   undo: 0, redo: 0, downloads: [], renderer: null, handleTransforms: [], progressLog: [], files: null,
 };
@@ -137,6 +137,8 @@ function connect() {
 function send(m) {
   if (ws && ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify(m));
 }
+// `n` with its noun in the right number: count(1, 'handle') is "1 handle".
+const count = (n, one, many = `${one}s`) => `${n} ${n === 1 ? one : many}`;
 function message(text, isError = false) {
   if (isError) state.errors.push(text);
   const box = $('messages');
@@ -287,6 +289,7 @@ function onModel(m) {
   $('steps').replaceChildren(); $('resize-info').textContent = ''; $('resize-warning').hidden = true; $('detections-info').textContent = ''; $('deform-info').textContent = '';
   $('symmetry-info').textContent = '';
   if (retargetObject) { scene.remove(retargetObject); retargetObject.geometry.dispose(); retargetObject = null; }
+  state.resizedSteps = null; committing = null;
   overlays.handles.visible = true; // hidden while a resized model covered the original
   gizmo.detach();
   if (m.annotation) onAnnotation({ annotation: m.annotation, groups: [], max_residual: null, ok: true, ms: 0 });
@@ -489,8 +492,8 @@ function onAnnotation(m) {
   state.annotation = { symmetries: a.symmetries.length, mirrors, axes, instanceSets, ok: m.ok, maxResidual: m.max_residual };
   const groups = m.groups.map((g) => `${g.schoenflies} (order ${g.order}), residual ${g.max_residual.toExponential(1)}`).join('\n');
   const n = a.symmetries.length;
-  $('symmetry-info').textContent = (n ? `${n} ${n === 1 ? 'symmetry' : 'symmetries'}: ${mirrors} mirror plane(s), ${axes} rotation axis(es)` : 'no symmetry found') +
-    (instanceSets ? `, ${instanceSets} instance set(s)` : '') + (groups ? `\n${groups}` : '') +
+  $('symmetry-info').textContent = (n ? `${n} ${n === 1 ? 'symmetry' : 'symmetries'}: ${count(mirrors, 'mirror plane')}, ${count(axes, 'rotation axis', 'rotation axes')}` : 'no symmetry found') +
+    (instanceSets ? `, ${count(instanceSets, 'instance set')}` : '') + (groups ? `\n${groups}` : '') +
     (m.max_residual != null && n ? `\nannotation residual ${m.max_residual.toExponential(2)} of the diagonal${m.ok ? '' : ' (does not fit!)'}` : '');
   overlays.symmetry.visible = $('show-symmetry').checked;
   // A new annotation means a new deformation session on the server, from the rest shape: the
@@ -505,7 +508,7 @@ function onAnnotation(m) {
 // Detecting or loading an annotation discards the deformation: only after the user agrees.
 function keepsDeformation(what) {
   if (!isDeformed() && !handles.length) return true;
-  return window.confirm(`${what} starts a new deformation from the undeformed model: the current one (${handles.length} handle(s)) will be discarded. Export it first to keep it.\n\nDiscard it and continue?`);
+  return window.confirm(`${what} starts a new deformation from the undeformed model: the current one (${count(handles.length, 'handle')}) will be discarded. Export it first to keep it.\n\nDiscard it and continue?`);
 }
 $('show-symmetry').onchange = () => { overlays.symmetry.visible = $('show-symmetry').checked; requestRender(); };
 $('detect-symmetry').onclick = () => {
@@ -598,9 +601,15 @@ function restCentroid(h) {
   h.balls.forEach((b) => c.add(new THREE.Vector3(...b.center)));
   return c.multiplyScalar(1 / h.balls.length);
 }
-function snapshot() {
+// One step of the undo history: the handles and, when a resized model is shown, its steps
+// (null: none shown; undefined: the offsets were found again since, so the step leaves the size
+// alone). The top of the stack is what is on screen; below the bottom lies EMPTY.
+function handlesSnapshot() {
   return handles.map((h) => ({ balls: h.balls.map((b) => ({ center: [...b.center], radius: b.radius })), matrix: h.matrix.clone() }));
 }
+function snapshot() { return { handles: handlesSnapshot(), steps: retargetObject ? shownSteps.slice() : null }; }
+const EMPTY = { handles: [], steps: null };
+const handlesKey = (hs) => JSON.stringify(hs.map((h) => [h.balls, h.matrix.elements]));
 function pushUndo() { undoStack.push(snapshot()); redoStack = []; updateUndo(); }
 function updateUndo() { state.undo = undoStack.length; state.redo = redoStack.length; }
 function transformsArray() {
@@ -620,7 +629,8 @@ function drawHandles() {
   requestRender();
 }
 function placeGizmo() {
-  if (active < 0) { gizmo.detach(); return; }
+  // (A stale index, left by the model before, selects nothing.)
+  if (active < 0 || !handles[active]) { gizmo.detach(); return; }
   const h = handles[active];
   const g = h.matrix.clone().multiply(new THREE.Matrix4().makeTranslation(restCentroid(h)));
   g.decompose(gizmoTarget.position, gizmoTarget.quaternion, gizmoTarget.scale);
@@ -651,7 +661,7 @@ function onHandles(m) {
   state.handleSamples = m.samples;
   m.transforms.forEach((t, i) => { if (handles[i]) { handles[i].matrix = fromRows(t); handles[i].fresh = false; } });
   state.handleTransforms = m.transforms;
-  $('deform-info').textContent = `${m.handles} handle(s), samples ${m.samples.join(' / ')} of ${m.total_samples}, ${m.dof} DoF\n` +
+  $('deform-info').textContent = `${count(m.handles, 'handle')}, samples ${m.samples.join(' / ')} of ${m.total_samples}, ${m.dof} DoF\n` +
     `precompute ${m.session_ms.toFixed(0)} ms, factorisation ${m.prefactor_ms.toFixed(1)} ms`;
   if (undoOnHandles) { undoOnHandles = false; pushUndo(); }
   placeGizmo();
@@ -853,7 +863,7 @@ function onDeformed(m) {
     if (d > maxd) maxd = d;
   }
   state.maxDisplacement = maxd / (state.diagonal || 1);
-  $('deform-info').textContent = `${state.handles} handle(s); largest move ${(state.maxDisplacement * 100).toFixed(1)}% of the diagonal\n` +
+  $('deform-info').textContent = `${count(state.handles, 'handle')}; largest move ${(state.maxDisplacement * 100).toFixed(1)}% of the diagonal\n` +
     (m.residual == null ? 'no symmetry annotation' : `symmetry residual ${m.residual.toExponential(2)} (rest ${m.rest_residual.toExponential(2)})`) +
     `\nhandles within ${(100 * m.handle_error).toFixed(2)}% of the diagonal of their targets, solve ${m.solve_ms.toFixed(1)} ms` +
     // Handles are soft: one the symmetries hold back lags its drag (as `motif deform` warns).
@@ -873,7 +883,18 @@ function followDeformation() {
   $('show-detections').title = deformed ? 'hidden while the model is deformed (Reset shows them again)' : '';
   requestRender();
 }
-function applySnapshot(s) {
+// Puts the handles and the size of a history step back, each only when it differs from what
+// is shown (undoing a resize does not refactor the deformation, and the reverse).
+function applyState(s) {
+  if (handlesKey(s.handles) !== handlesKey(handlesSnapshot())) applyHandles(s.handles);
+  if (s.steps === undefined) return;
+  const now = retargetObject ? shownSteps : null;
+  if (JSON.stringify(s.steps) === JSON.stringify(now)) return;
+  if (s.steps === null) { clearResized(); return; }
+  s.steps.forEach((v, k) => { if ($(`step-${k}`)) { $(`step-${k}`).value = v; $(`step-${k}-value`).value = v; } });
+  sendRetarget();
+}
+function applyHandles(s) {
   handles = s.map((h) => ({ balls: h.balls.map((b) => ({ ...b })), matrix: h.matrix.clone() }));
   active = handles.length - 1;
   placeGizmo(); drawHandles(); sendHandles();
@@ -883,17 +904,17 @@ function applySnapshot(s) {
 $('undo').onclick = () => {
   if (!undoStack.length) return;
   redoStack.push(undoStack.pop());
-  applySnapshot(undoStack.length ? undoStack[undoStack.length - 1] : []);
+  applyState(undoStack.length ? undoStack[undoStack.length - 1] : EMPTY);
   updateUndo();
 };
 $('redo').onclick = () => {
   if (!redoStack.length) return;
   const s = redoStack.pop();
   undoStack.push(s);
-  applySnapshot(s);
+  applyState(s);
   updateUndo();
 };
-$('reset').onclick = () => { applySnapshot([]); pushUndo(); state.maxDisplacement = 0; $('deform-info').textContent = 'no handles'; };
+$('reset').onclick = () => { applyHandles([]); pushUndo(); state.maxDisplacement = 0; $('deform-info').textContent = 'no handles'; };
 // The name's extension decides the format; the list follows it, and a name without one gets the
 // list's format.
 const extOf = (p) => { const m = /\.([^.\/]+)$/.exec(p.trim()); return m ? m[1].toLowerCase() : ''; };
@@ -917,6 +938,9 @@ function restoreSteps() {
 }
 function onOffsets(m) {
   shownSteps = [0, 0, 0];
+  clearResized(false);
+  // The sliders are new: steps kept in the history no longer name a size on them.
+  for (const e of [...undoStack, ...redoStack]) e.steps = undefined;
   clearGroup(overlays.offsets);
   state.offsets = { principal: m.principal.length, cells: m.cells, minSteps: m.min_steps, summary: m.summary };
   state.cells = m.cells; state.totalCells = m.cells.reduce((a, b) => a * b, 1);
@@ -938,20 +962,51 @@ function onOffsets(m) {
     // least 6 and at most 64 (the server's limit); the number field takes any value in range.
     const lo = Math.max(-64, (m.min_steps && m.min_steps[k] != null) ? m.min_steps[k] : -3);
     const hi = Math.min(64, Math.max(6, 2 * (m.cells[k] || 0)));
-    row.innerHTML = `<label title="cells to add along this offset (negative removes)">offset ${k}: ${v.length().toPrecision(3)} units, ${m.cells[k]} cell(s) <input type="range" id="step-${k}" min="${lo}" max="${hi}" step="1" value="0"><input type="number" id="step-${k}-value" min="${lo}" max="${hi}" step="1" value="0" style="width:4em"></label>`;
+    row.innerHTML = `<label title="cells to add along this offset (negative removes)">offset ${k}: ${v.length().toPrecision(3)} units, ${m.cells[k]} ${m.cells[k] === 1 ? 'cell' : 'cells'} <input type="range" id="step-${k}" min="${lo}" max="${hi}" step="1" value="0"><input type="number" id="step-${k}-value" min="${lo}" max="${hi}" step="1" value="0" style="width:4em"></label>`;
     steps.append(row);
   });
   m.principal.forEach((_, k) => {
     $(`step-${k}`).oninput = () => { $(`step-${k}-value`).value = $(`step-${k}`).value; sendRetarget(); };
+    // Releasing the slider makes the size one step of the undo history.
+    $(`step-${k}`).onchange = commitSize;
     $(`step-${k}-value`).onchange = () => {
       const f = $(`step-${k}-value`);
       const v = Math.max(Number(f.min), Math.min(Number(f.max), Math.round(Number(f.value) || 0)));
       f.value = v; $(`step-${k}`).value = v;
       sendRetarget();
+      commitSize();
     };
   });
   $('resize-warning').hidden = true;
-  $('resize-info').textContent = `${m.principal.length} principal offset(s); cells ${m.cells.join(' × ')}; ${m.ms.toFixed(0)} ms\n${m.summary}`;
+  $('resize-info').textContent = `${m.principal.length} principal ${m.principal.length === 1 ? 'offset' : 'offsets'}; cells ${m.cells.join(' × ')}; ${m.ms.toFixed(0)} ms\n${m.summary}`;
+  requestRender();
+}
+// The size the user settled on (slider released, number typed) enters the undo history once
+// the server has shown it; a size the server refuses never does.
+let committing = null;
+const slidersSteps = () => [0, 1, 2].map((k) => ($(`step-${k}`) ? parseInt($(`step-${k}`).value, 10) : 0));
+function commitSize() {
+  committing = slidersSteps();
+  maybeCommit();
+}
+function maybeCommit() {
+  if (!committing || !retargetObject || JSON.stringify(committing) !== JSON.stringify(shownSteps)) return;
+  committing = null;
+  const top = undoStack.length ? undoStack[undoStack.length - 1] : EMPTY;
+  if (JSON.stringify(top.steps) !== JSON.stringify(shownSteps)) pushUndo();
+}
+// Removes the resized model (undo back past the first resize, offsets found again): the
+// original shows again with its handles, and the sliders go back to 0.
+function clearResized(say = true) {
+  if (!retargetObject) return;
+  scene.remove(retargetObject); retargetObject.geometry.dispose(); retargetObject = null;
+  shownSteps = [0, 0, 0]; restoreSteps();
+  if (object) object.visible = true;
+  overlays.handles.visible = true; placeGizmo();
+  if (state.offsets) { state.cells = state.offsets.cells; state.totalCells = state.offsets.cells.reduce((a, b) => a * b, 1); }
+  state.retargetVersion++; state.resizedSteps = null;
+  $('resize-warning').hidden = true;
+  if (say) $('resize-info').textContent = 'back to the original size (Redo resizes again)';
   requestRender();
 }
 function sendRetarget() {
@@ -975,6 +1030,8 @@ function onRetargetedMesh(pos, index, m) {
   object.visible = $('show-original').checked;
   state.cells = m.cells; state.totalCells = m.total_cells; state.retargetVertices = m.vertices; state.retargetVersion++;
   shownSteps = m.steps.slice();
+  state.resizedSteps = shownSteps.slice();
+  maybeCommit();
   const n = m.cells.length;
   $('resize-info').textContent = `steps ${m.steps.slice(0, n).join(', ')}: cells ${m.cells.join(' × ')}${n > 1 ? ` = ${m.total_cells}` : ''}\n${m.vertices} vertices, ${m.triangles} triangles, ${m.ms.toFixed(0)} ms` +
     // The resize starts from the undeformed model.
@@ -998,7 +1055,10 @@ window.addEventListener('beforeunload', (ev) => {
   if (isDeformed() || retargetObject) { ev.preventDefault(); ev.returnValue = ''; }
 });
 $('find-offsets').onclick = () => { setBusy('offsets'); send({ type: 'offsets' }); };
-$('export-resized').onclick = () => { setBusy('export'); send({ type: 'export', path: $('export-resized-path').value, source: 'retargeted', download: true, overwrite: $('overwrite').checked }); };
+$('export-resized').onclick = () => {
+  // The server keeps the last resize; after an undo back to the original size none is shown.
+  if (!retargetObject) { message('nothing resized yet: move a slider under Resize first (after Find offsets)', true); reveal($('messages')); return; }
+  setBusy('export'); send({ type: 'export', path: $('export-resized-path').value, source: 'retargeted', download: true, overwrite: $('overwrite').checked }); };
 
 // Test helpers: where a world point appears on screen, and a rest vertex.
 window.motif.project = (p) => {
@@ -1012,6 +1072,7 @@ window.motif.handleScreen = (i) => window.motif.project(new THREE.Vector3(...han
 window.motif.gizmoScreen = () => (active >= 0 ? window.motif.project(gizmoTarget.position.toArray()) : null);
 // The current (deformed) shape as a plain array, and the surface point under a screen position.
 window.motif.positions = () => Array.from(geometry.getAttribute('position').array);
+window.motif.resizedShown = () => ({ resized: !!retargetObject && retargetObject.parent === scene, original: !!object && object.visible });
 window.motif.surfaceAt = (x, y) => {
   if (!pickMesh) return null;
   const rect = renderer.domElement.getBoundingClientRect();
