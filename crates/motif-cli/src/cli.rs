@@ -45,7 +45,7 @@ pub enum Command {
     Convert(ConvertArgs),
     /// Sample points on a surface (random, or Poisson-disc) or resample a point cloud.
     Sample(SampleArgs),
-    /// Estimate oriented normals (PCA + consistent orientation) and write a PLY with normals.
+    /// Estimate oriented normals (PCA + consistent orientation) and write them with the points (PLY, OBJ, OFF, glTF).
     Normals(NormalsArgs),
     /// Principal curvatures and directions by quadratic (jet) fitting.
     Curvature(CurvatureArgs),
@@ -163,6 +163,14 @@ pub fn json_path(value: &str) -> Result<PathBuf, String> {
         )),
         None => Ok(PathBuf::from(value)),
     }
+}
+
+/// Value parser for one of `--steps`: a whole number of cells, said so when it is not one (Rust's
+/// own message was "invalid digit found in string").
+pub fn step_count(value: &str) -> Result<i32, String> {
+    value.trim().parse::<i32>().map_err(|_| {
+        "not a whole number of cells (steps are integers such as 2,1,0; negative shrinks)".to_string()
+    })
 }
 
 /// The extension of `value`, lower case, when it names a model or picture format.
@@ -335,7 +343,7 @@ pub enum OrientationArg {
 pub struct NormalsArgs {
     /// Input point cloud or mesh.
     pub input: PathBuf,
-    /// Output PLY with nx ny nz. Also `-o OUTPUT`.
+    /// Output with the normals (PLY, OBJ, OFF, glTF/GLB; STL holds no point normals). Also `-o OUTPUT`.
     #[arg(required_unless_present = "output_flag")]
     pub output: Option<PathBuf>,
     /// The output, given as an option instead (as the pipeline commands take it).
@@ -473,23 +481,24 @@ pub struct ExampleArgs {
     #[arg(short = 'o', long = "output", value_name = "OUTPUT", conflicts_with = "output")]
     pub output_flag: Option<PathBuf>,
     /// Also write the known structure (symmetries, cell pitch, instances) as JSON.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_parser = json_path)]
     pub structure: Option<PathBuf>,
     /// Also write the known symmetries as a motif_symmetry_v1 annotation (for `motif deform`).
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_parser = json_path)]
     pub annotation: Option<PathBuf>,
     /// Also write a sample drag as motif_handles_v1: one end of the longest axis fixed, the other
     /// lifted over 30 frames.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_parser = json_path)]
     pub handles: Option<PathBuf>,
     /// List the available examples.
     #[arg(long)]
     pub list: bool,
     /// Benchmark scenes (scene-*): also write the building-block ground truth as JSON (the
     /// schema `motif eval` reads).
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_parser = json_path)]
     pub gt: Option<PathBuf>,
-    /// Benchmark scenes: noise, variation, occlusion, clutter and irregularity preset.
+    /// Benchmark scenes: noise, variation, occlusion, clutter and irregularity preset [default:
+    /// medium].
     #[arg(long, value_enum)]
     pub difficulty: Option<DifficultyArg>,
     /// Benchmark scenes: number of points (default 300000).
@@ -516,7 +525,7 @@ pub enum DifficultyArg {
 #[derive(Debug, Args)]
 pub struct DemoArgs {
     /// Folder for the demo's outputs (created; existing files in it are replaced).
-    #[arg(long, default_value = "motif-demo")]
+    #[arg(long, short = 'o', visible_alias = "output", default_value = "motif-demo")]
     pub out: PathBuf,
     #[command(flatten)]
     pub json: JsonArg,
@@ -619,8 +628,9 @@ pub struct SymmetryCheckArgs {
 pub struct DeformArgs {
     /// Input mesh.
     pub mesh: PathBuf,
-    /// Symmetry annotation (motif_symmetry_v1), e.g. from `motif symmetry detect`.
-    #[arg(long)]
+    /// Symmetry annotation (motif_symmetry_v1), e.g. from `motif symmetry detect`. Required
+    /// unless --no-symmetry.
+    #[arg(long, required_unless_present = "no_symmetry")]
     pub symmetry: Option<PathBuf>,
     /// Handles (motif_handles_v1); with `frames`, they are solved in sequence and the last is written.
     #[arg(long)]
@@ -894,7 +904,7 @@ pub struct RetargetArgs {
     #[arg(short, long)]
     pub output: PathBuf,
     /// Principal offsets to add per direction, as U,V,W (negative shrinks), e.g. 2,1,0.
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true, value_parser = step_count)]
     pub steps: Option<Vec<i32>>,
     /// Desired bounding-box size X,Y,Z in model units; rounded to whole offsets. `-` keeps an
     /// axis's size (e.g. 3,-,-).

@@ -370,9 +370,6 @@ pub enum OutputKind {
     PointCloud,
     /// A picture, written as PNG.
     Png,
-    /// A JSON document: any name but one whose extension names a model format or PNG, which
-    /// would be a mix-up with another output (`--structure shelf.obj`).
-    Json,
 }
 
 /// Checks before any work that each output's extension names a format Motif writes for what it
@@ -387,15 +384,6 @@ pub fn check_output_formats(outputs: &[(Option<&Path>, OutputKind)]) -> anyhow::
                 if kind == OutputKind::PointCloud && format == motif_core::io::Format::Stl {
                     return Err(bad_input(format!(
                         "{}: STL holds only triangles, not a point cloud (use .ply, .obj, .off, .gltf or .glb)",
-                        path.display()
-                    )));
-                }
-            }
-            OutputKind::Json => {
-                let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
-                if motif_core::io::Format::from_path(path).is_ok() || ext == "png" {
-                    return Err(bad_input(format!(
-                        "{}: this output is JSON, but .{ext} names another kind of file (give it a .json name)",
                         path.display()
                     )));
                 }

@@ -1613,12 +1613,12 @@ fn descriptors_and_curvatures_of_which_none_is_valid_say_why() {
     let d = tmp();
     assert!(motif(&["example", "shelf", "s.obj"], d.path()).status.success());
     let o =
-        motif(&["features", "shot", "s.obj", "-o", "f.json", "--radius", "1e-6", "--every", "1"], d.path());
+        motif(&["features", "shot", "s.obj", "-o", "f.shot", "--radius", "1e-6", "--every", "1"], d.path());
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(
         stderr(&o).contains("none of the 984 descriptors is valid") && stderr(&o).contains("larger --radius")
     );
-    assert!(!d.path().join("f.json").exists());
+    assert!(!d.path().join("f.shot").exists());
     let o = motif(&["curvature", "s.obj", "k.ply", "--radius", "1e-7"], d.path());
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("no point could be fitted") && stderr(&o).contains("radius 0.0000001"));
@@ -1917,6 +1917,38 @@ fn reports_and_errors_speak_the_command_line() {
     let cycles = r["retarget"]["cycles"].as_u64().unwrap();
     let said = format!("({cycles} {})", if cycles == 1 { "cycle" } else { "cycles" });
     assert!(stdout(&o).contains(&said) && stdout(&o).contains("MRF (offsets)"), "{}", stdout(&o));
+    // A step that is not a whole number says so (Rust's "invalid digit found in string" did not).
+    let o = motif(&["retarget", "s.obj", "--steps", "a,1", "-o", "r2.obj"], dir);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("not a whole number of cells"), "{}", stderr(&o));
+    // SHOT descriptors are not written under a model's name (PEERSHOT bytes in a .ply).
+    let o = motif(&["features", "shot", "s.obj", "--radius", "0.1", "--every", "50", "-o", "f.ply"], dir);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("f.ply") && stderr(&o).contains(".csv"), "{}", stderr(&o));
+    // A sampling radius too fine for the candidate limit is named by its flag.
+    let o = motif(&["sample", "s.obj", "fine.ply", "--radius", "0.00001"], dir);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--radius") && !stderr(&o).contains("oversampling"), "{}", stderr(&o));
+    // A binary file under a .ply name is said to be binary, not printed as escapes.
+    std::fs::write(dir.join("noise.ply"), [0u8, 159, 146, 150, 7, 1, 2, 255]).unwrap();
+    let o = motif(&["info", "noise.ply"], dir);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("binary data") && !stderr(&o).contains("\\u{"), "{}", stderr(&o));
+    // Ground truth given first and a result second is probably a swap: a warning says so.
+    let o = motif(&["example", "scene-facade", "f.ply", "--gt", "f.gt.json", "--points", "40000", "-q"], dir);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let o = motif(&["detect", "f.ply", "-o", "f.det.json", "-q"], dir);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let swapped = motif(&["eval", "f.gt.json", "f.det.json"], dir);
+    let right = motif(&["eval", "f.det.json", "f.gt.json"], dir);
+    assert!(stderr(&swapped).contains("wrong way round"), "{}", stderr(&swapped));
+    assert!(!stderr(&right).contains("wrong way round"), "{}", stderr(&right));
+    // An annotation of another model: the error names the symmetries once, the table says why.
+    let o = motif(&["symmetry", "check", "s.obj", "w.json"], dir);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let last = stderr(&o).lines().last().unwrap_or_default().to_string();
+    assert!(last.contains("\"rotor\"") && !last.contains("selects no vertex"), "{last}");
+    assert!(stdout(&o).contains("selects no vertex"), "{}", stdout(&o));
     assert_no_stray_files(dir);
 }
 

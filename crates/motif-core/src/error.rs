@@ -75,7 +75,7 @@ pub enum Error {
         extension: String,
     },
     /// An algorithm was given input it cannot work with (empty mesh, too few points, ...).
-    #[error("invalid input: {0}")]
+    #[error("{0}")]
     InvalidInput(String),
     /// An option is out of its valid range.
     #[error("invalid option {name}: {message}")]

@@ -175,6 +175,31 @@ fn windmill_rotor_is_found_as_a_partial_symmetry() {
     assert_eq!(d.annotation.symmetries.len(), 1);
 }
 
+/// A partial group adds something the whole shape does not have: on the shelf, each board's
+/// D2h contains the shelf's own C2v, which (found on the whole mesh) was reported as a second
+/// "part" repeating the global group.
+#[test]
+fn no_partial_group_repeats_the_global_one() {
+    for name in ["shelf", "windmill", "chair"] {
+        let ex = generate(name, 0).unwrap();
+        let d = detect_symmetries(&ex.mesh, &SymmetryDetectOptions::default()).unwrap();
+        let m = metric(&d);
+        let global = d.global_group().map(|g| elements(&d, g)).unwrap_or_default();
+        for g in d.report.groups.iter().filter(|g| matches!(g.scope, Scope::Part(_))) {
+            let new = elements(&d, g)
+                .iter()
+                .filter(|e| !group_contains(&global, e, &m, 1e-6 * d.report.diagonal))
+                .count();
+            assert!(
+                new > 0,
+                "{name}: part group {} on {:?} faces is a subgroup of the global one",
+                g.name,
+                g.region_faces
+            );
+        }
+    }
+}
+
 /// A random rigid motion (rotation about a random axis through a random point).
 fn random_motion(seed: u64) -> Mat4 {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);

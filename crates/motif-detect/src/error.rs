@@ -41,7 +41,7 @@ pub enum DetectError {
         message: String,
     },
     /// Input data the algorithm cannot work with (empty cloud, NaN coordinates, ...).
-    #[error("invalid input: {0}")]
+    #[error("{0}")]
     InvalidInput(String),
     /// A geometry-core operation (kd-tree, ICP, sampling, file IO) failed.
     #[error(transparent)]

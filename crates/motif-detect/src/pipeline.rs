@@ -413,9 +413,10 @@ impl Detection {
             if kept.len() < 2 {
                 if dropped > 0 {
                     notes.push(format!(
-                        "{name}: left out of the symmetry annotation: {dropped} of its {} instance boxes hold no \
+                        "{name}: left out of the symmetry annotation: {dropped} of its {} instance boxes {} no \
                          mesh vertex, which leaves fewer than two",
-                        c.instances.len()
+                        c.instances.len(),
+                        if dropped == 1 { "holds" } else { "hold" }
                     ));
                 }
                 if !c.instances.is_empty() && vertices.is_some() {
@@ -423,9 +424,11 @@ impl Detection {
                 }
             } else if dropped > 0 {
                 notes.push(format!(
-                    "{name}: {dropped} of its {} instance boxes hold no mesh vertex and are left out of the \
+                    "{name}: {dropped} of its {} instance boxes {} no mesh vertex and {} left out of the \
                      symmetry annotation",
-                    c.instances.len()
+                    c.instances.len(),
+                    if dropped == 1 { "holds" } else { "hold" },
+                    if dropped == 1 { "is" } else { "are" }
                 ));
             }
             // The first instance kept is the template: transforms are re-based onto it, so that

@@ -687,19 +687,19 @@ fn draw_text(
         ));
     }
     lines.push((
-        "How to read it: heat = offsets per bin (log scale); circles = histogram peaks".into(),
+        "How to read it: heat = offsets per bin (log scale); circles = histogram peaks, blue: kept;".into(),
         13,
         grey,
     ));
     lines.push((
-        "(blue kept, grey rejected: col collapsed to 0 under ICP, dri drifted, low / none".into(),
+        "grey: rejected, marked col (collapsed to 0 under ICP), dri (drifted), dup (a repeat),".into(),
         13,
         grey,
     ));
     let tau_mark =
         if line_axis(analysis).is_some() { "grey band = |v| < τ" } else { "thin circle = |v| = τ" };
     lines.push((
-        format!("too little / no surface overlap, dup a repeat); {tau_mark}, offsets inside are ignored"),
+        format!("low / none (too little / no surface overlap); {tau_mark}, offsets inside are ignored"),
         13,
         grey,
     ));

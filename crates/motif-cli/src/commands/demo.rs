@@ -164,12 +164,11 @@ fn round_trip(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
         let same =
             back.vertices.len() == ex.mesh.num_vertices() && back.triangles.len() == ex.mesh.num_triangles();
         lines.push(format!(
-            "{:<4} {:?}: {} vertices, {} triangles, max position error {:.1e}{}",
-            ext,
-            Format::from_path(&p)?,
+            "{:<4} {} vertices, {} triangles, max position error {}{}",
+            format!("{}:", Format::from_path(&p)?.name().to_uppercase()),
             back.vertices.len(),
             back.triangles.len(),
-            err,
+            if err == 0.0 { "0".to_string() } else { format!("{err:.1e}") },
             if same { "" } else { "  (COUNTS DIFFER)" }
         ));
         anyhow::ensure!(same, "round trip through .{ext} changed the counts");

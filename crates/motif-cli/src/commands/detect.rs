@@ -19,7 +19,7 @@ pub fn validate_options(o: &DetectOptions) -> anyhow::Result<()> {
     // ε is checked here, in the user's terms: the library sees it only once multiplied by the
     // diagonal (`--epsilon=-1` was reported as "epsilon … got -33.95").
     let epsilon = match o.preprocess.epsilon {
-        Epsilon::Relative(r) => Some(("--epsilon", r, "of the bounding-box diagonal")),
+        Epsilon::Relative(r) => Some(("--epsilon", r, "relative to the principal-axes diagonal")),
         Epsilon::Absolute(e) => Some(("--epsilon-abs", e, "in model units")),
         Epsilon::Auto => None,
     };
@@ -107,12 +107,7 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         &inputs,
         g.force,
     )?;
-    crate::output::check_output_formats(&[
-        (a.plot.as_deref(), crate::output::OutputKind::Png),
-        (Some(&a.output), crate::output::OutputKind::Json),
-        (a.as_symmetry.as_deref(), crate::output::OutputKind::Json),
-        (a.json.json.as_deref(), crate::output::OutputKind::Json),
-    ])?;
+    crate::output::check_output_formats(&[(a.plot.as_deref(), crate::output::OutputKind::Png)])?;
     if let Some(p) = &a.labels {
         if !p.extension().is_some_and(|e| e.eq_ignore_ascii_case("ply")) {
             return Err(crate::output::bad_input(format!(
@@ -303,10 +298,12 @@ fn keep_exact_copies(
             instances.into_iter().enumerate().filter(|&(a, _)| a == 0 || fits(a)).map(|(_, i)| i).collect();
         if keep.len() >= 2 {
             notes.push(format!(
-                "{}: {} of its {n} instances are not copies of the first within the annotation's tolerance \
-                 ({tol:.0e} of the diagonal; up to {worst:.1e}) and are left out of the symmetry annotation",
+                "{}: {} of its {n} instances {} of the first within the annotation's tolerance \
+                 ({tol:.0e} of the diagonal; up to {worst:.1e}) and {} left out of the symmetry annotation",
                 sym.name,
-                n - keep.len()
+                n - keep.len(),
+                if n - keep.len() == 1 { "is not a copy" } else { "are not copies" },
+                if n - keep.len() == 1 { "is" } else { "are" }
             ));
             kept.symmetries
                 .push(Symmetry { name: sym.name, kind: SymmetryKind::Instances { instances: keep } });

@@ -142,6 +142,27 @@ fn pair_warnings(d: &DetectionResult, gt: &DetectionResult, dp: &Path, gp: &Path
             gt.scene
         ));
     }
+    // `motif detect` names its classes class_0, class_1, ...; ground truth names what they are.
+    // Both files share one schema, so a swapped pair would score with P and R exchanged.
+    let detector_names = |r: &DetectionResult| {
+        r.classes.iter().all(|c| {
+            c.name
+                .as_deref()
+                .and_then(|n| n.strip_prefix("class_"))
+                .is_some_and(|n| n.parse::<usize>().is_ok())
+        })
+    };
+    let named = |r: &DetectionResult| r.classes.iter().all(|c| c.name.is_some());
+    if !d.classes.is_empty() && !gt.classes.is_empty() && named(d) && !detector_names(d) && detector_names(gt)
+    {
+        out.push(format!(
+            "{} names its classes as ground truth does, and {} as `motif detect` does: were they given \
+             the wrong way round? (the result comes first, then the ground truth; precision and recall \
+             swap otherwise)",
+            dp.display(),
+            gp.display()
+        ));
+    }
     if gt.classes.iter().all(|c| c.instances.is_empty()) {
         out.push(format!(
             "{} annotates no instance: the pair scores P = R = F = 1 if the result is empty too, 0 \

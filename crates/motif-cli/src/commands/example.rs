@@ -42,12 +42,7 @@ pub fn run(a: ExampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         &[],
         g.force,
     )?;
-    crate::output::check_output_formats(&[
-        (Some(&output), crate::output::OutputKind::Model),
-        (a.structure.as_deref(), crate::output::OutputKind::Json),
-        (a.annotation.as_deref(), crate::output::OutputKind::Json),
-        (a.handles.as_deref(), crate::output::OutputKind::Json),
-    ])?;
+    crate::output::check_output_formats(&[(Some(&output), crate::output::OutputKind::Model)])?;
     let ex = procedural::generate(&name, g.seed)?;
     let model = Model::from_mesh(&ex.mesh);
     super::write_model(&output, &model, &[], g, &a.encoding)?;
@@ -72,6 +67,9 @@ pub fn run(a: ExampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             a.structure.as_ref().map(|s| format!("; structure in {}", s.display())).unwrap_or_default()
         ),
     );
+    for p in [&a.structure, &a.annotation, &a.handles].into_iter().flatten() {
+        super::note(g, format!("wrote {}", p.display()));
+    }
     Ok(())
 }
 
@@ -134,10 +132,7 @@ fn run_scene(kind: SceneKind, output: &Path, a: &ExampleArgs, g: &GlobalArgs) ->
     };
     let parts: Vec<&Path> = a.parts.iter().map(|p| p.as_path()).collect();
     check_outputs(&[Some(output), a.gt.as_deref()], &parts, g.force)?;
-    crate::output::check_output_formats(&[
-        (Some(output), crate::output::OutputKind::PointCloud),
-        (a.gt.as_deref(), crate::output::OutputKind::Json),
-    ])?;
+    crate::output::check_output_formats(&[(Some(output), crate::output::OutputKind::PointCloud)])?;
     let t = Instant::now();
     let mut scene = generate_scene(kind, &options)?;
     let seconds = t.elapsed().as_secs_f64();

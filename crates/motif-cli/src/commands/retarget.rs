@@ -372,8 +372,15 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             s[..v.len()].copy_from_slice(v);
             if let Some(k) = (principal.len()..3).find(|&k| s[k] != 0) {
                 return Err(bad_input(format!(
-                    "--steps: direction {k} has no principal offset (the model repeats along {} direction(s) only)",
-                    principal.len()
+                    "--steps: direction {k} has no principal offset ({} only)",
+                    if a.offsets.is_some() {
+                        format!("--offsets gives {}", count(principal.len(), "direction", "directions"))
+                    } else {
+                        format!(
+                            "the model repeats along {}",
+                            count(principal.len(), "direction", "directions")
+                        )
+                    }
                 )));
             }
             s
@@ -493,10 +500,10 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             println!("offset {k}: [{}, {}, {}]  steps {:+}", len(o[0]), len(o[1]), len(o[2]), steps[k]);
         }
         println!(
-            "MRF ({}): {} nodes, {} labels, energy {:.4} ({}), graph cut {:.1} ms, total {:.1} ms",
+            "MRF ({}): {} nodes, {}, energy {:.4} ({}), graph cut {:.1} ms, total {:.1} ms",
             r.method.as_str(),
             r.nodes,
-            r.labels,
+            count(r.labels, "label", "labels"),
             r.energy,
             count(r.cycles, "cycle", "cycles"),
             r.graph_cut_ms,

@@ -69,12 +69,23 @@ pub fn run(a: SampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             (None, None) => return Err(bad_input("give --radius or --count")),
         };
         let options = PoissonDiscOptions { spacing, seed: g.seed, ..Default::default() };
+        // The library's limit on candidates names its option; say it with the flag given.
+        let flag = match spacing {
+            Spacing::Radius(r) => format!("--radius {r}"),
+            Spacing::Count(n) => format!("--count {n}"),
+        };
+        let in_flags = |e: motif_core::Error| match e {
+            motif_core::Error::InvalidOption { name: "radius", message } => {
+                bad_input(format!("{}: {flag}: {message}", a.input.display()))
+            }
+            e => anyhow::Error::new(e).context(in_input()),
+        };
         if model.is_mesh() {
-            let s = poisson_disc_surface(&model.mesh(), &Constraints::default(), &options).with_context(in_input)?;
+            let s = poisson_disc_surface(&model.mesh(), &Constraints::default(), &options).map_err(in_flags)?;
             let cloud = PointCloud { positions: s.positions, normals: s.normals, ..Default::default() };
             (cloud, "Poisson-disc on the surface", Some(s.radius))
         } else {
-            let s = poisson_disc_cloud(&model.vertices, &Constraints::default(), &options).with_context(in_input)?;
+            let s = poisson_disc_cloud(&model.vertices, &Constraints::default(), &options).map_err(in_flags)?;
             let idx = s.candidate_indices();
             (model.vertices.select(&idx), "Poisson-disc subset of the cloud", Some(s.radius))
         }

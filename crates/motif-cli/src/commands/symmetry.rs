@@ -87,7 +87,7 @@ pub fn detect(a: SymmetryDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 None => String::new(),
             };
             println!(
-                "{scope:<8} {}{region} ; max residual {:.1e} of the diagonal over surface samples{at_vertices}{}",
+                "{scope:<8} {}{region}; max residual {:.1e} of the diagonal over surface samples{at_vertices}{}",
                 gr.name,
                 gr.max_residual,
                 if gr.possibly_continuous { " (possibly a surface of revolution)" } else { "" }
@@ -145,18 +145,26 @@ pub fn check(a: SymmetryCheckArgs, _g: &GlobalArgs) -> anyhow::Result<()> {
     }
     // A symmetry that could not even be resolved (not a rigid motion, a region out of range, an
     // infinite group) is bad input, as `deform` treats it: exit 2, naming what is wrong.
-    let malformed: Vec<String> = report
+    let malformed: Vec<(&str, &str)> = report
         .symmetries
         .iter()
         .filter(|s| !s.ok)
-        .filter_map(|s| s.problem.as_ref().map(|p| format!("symmetry \"{}\": {p}", s.name)))
+        .filter_map(|s| s.problem.as_deref().map(|p| (s.name.as_str(), p)))
         .collect();
     if !malformed.is_empty() {
-        return Err(crate::output::bad_input(format!(
-            "{}: {}",
-            a.annotation.display(),
-            malformed.join("; ")
-        )));
+        // The table above gives each problem; the error names the symmetries once. With the
+        // JSON on stdout no table is printed, so the problems themselves are the message.
+        let what = if crate::output::json_on_stdout(&a.json.json) {
+            malformed.iter().map(|(n, p)| format!("symmetry \"{n}\": {p}")).collect::<Vec<_>>().join("; ")
+        } else {
+            format!(
+                "{} cannot be resolved on {} ({}; the problems are listed above)",
+                crate::output::count(malformed.len(), "symmetry", "symmetries"),
+                a.mesh.display(),
+                malformed.iter().map(|(n, _)| format!("\"{n}\"")).collect::<Vec<_>>().join(", ")
+            )
+        };
+        return Err(crate::output::bad_input(format!("{}: {what}", a.annotation.display())));
     }
     if !report.ok {
         anyhow::bail!(

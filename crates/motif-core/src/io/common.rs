@@ -15,11 +15,16 @@ pub(crate) fn perr(path: &Path, position: Position, message: impl Into<String>) 
 /// A token as a user can read it in an error message: lossy UTF-8, at most 40 characters.
 pub(crate) fn show(token: &[u8]) -> String {
     let s = String::from_utf8_lossy(token);
+    // Bytes that are not text (a binary file, a wrong extension) are said to be so, rather than
+    // printed as escapes and replacement characters.
+    if s.chars().any(|c| c == char::REPLACEMENT_CHARACTER || (c.is_control() && c != '\t')) {
+        return "binary data, not text".to_string();
+    }
     let mut out: String = s.chars().take(40).collect();
     if s.chars().count() > 40 {
         out.push('…');
     }
-    format!("{out:?}")
+    format!("\"{out}\"")
 }
 
 /// Iterates the lines of a text buffer as `(1-based line number, bytes without the line end)`.

@@ -592,7 +592,7 @@ pub fn poisson_disc_surface(
         return Err(Error::InvalidOption {
             name: "radius",
             message: format!(
-                "about {expected:.0} samples would need {wanted:.0} candidates (limit {MAX_CANDIDATES}): use a larger radius or less oversampling"
+                "about {expected:.0} samples would need {wanted:.0} candidates (limit {MAX_CANDIDATES}): use a larger radius or fewer samples"
             ),
         });
     }

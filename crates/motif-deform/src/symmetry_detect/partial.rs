@@ -149,6 +149,11 @@ pub(crate) fn detect(
         let mut first = true;
         let mut best_region = 0usize;
         for h in subgroups(&g, &shape, tol) {
+            // A subgroup the whole shape has already (the shelf's C2v inside a board's D2h)
+            // maps the whole mesh onto itself: a region for it would repeat the global group.
+            if h.elements.iter().all(|m| group_contains(global, m, &global_metric, global_merge)) {
+                continue;
+            }
             let Some((region, residual)) =
                 region_of(&h, class, &comps, &comp_points, &comp_vertices, whole, mesh, tol)
             else {

@@ -41,7 +41,8 @@ pub enum RetargetError {
     /// world axis (its voxels are 0.1 normalised units, not cells, so no bound on the steps along
     /// the principal offsets can be given).
     #[error(
-        "the dense baseline's grid of {spacing} (normalised units) would shrink along {axis} from {input_voxels} to {output_voxels} voxel(s); at least {minimum} must remain: ask for fewer negative steps"
+        "the dense baseline's grid of {spacing} (normalised units) would shrink along {axis} from {input_voxels} to {output_voxels} {}; at least {minimum} must remain: ask for fewer negative steps",
+        voxels(*.output_voxels)
     )]
     DenseShrinkTooFar {
         /// The world axis, "x", "y" or "z".
@@ -57,7 +58,8 @@ pub enum RetargetError {
     },
     /// Shrinking would leave fewer voxels than the model needs along a direction.
     #[error(
-        "steps[{direction}] = {steps} shrinks direction {direction} from {input_voxels} to {output_voxels} voxel(s) of the retargeting grid (one principal offset long each; the end voxels may hold only part of a cell, such as a closing board, so the grid can count one more than the model's whole cells); at least {minimum} must remain (steps >= {min_steps})"
+        "steps[{direction}] = {steps} shrinks direction {direction} from {input_voxels} to {output_voxels} {} of the retargeting grid (one principal offset long each; the end voxels may hold only part of a cell, such as a closing board, so the grid can count one more than the model's whole cells); at least {minimum} must remain (steps >= {min_steps})",
+        voxels(*.output_voxels)
     )]
     ShrinkBelowOneCell {
         /// The direction index.
@@ -130,3 +132,8 @@ impl RetargetError {
 
 /// Result alias of the retargeting stage.
 pub type RetargetResult<T> = std::result::Result<T, RetargetError>;
+
+/// "voxel" or "voxels", as `n` needs.
+fn voxels(n: i64) -> &'static str {
+    if n == 1 { "voxel" } else { "voxels" }
+}
