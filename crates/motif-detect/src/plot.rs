@@ -13,6 +13,7 @@ use std::sync::Once;
 use motif_core::plotting::TextFix;
 use plotters::coord::Shift;
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 use plotters::style::{FontStyle, register_font};
 
 use crate::error::{DetectError, Result};
@@ -257,10 +258,20 @@ fn draw_curve(
         .draw_series(points.iter().map(|&p| Circle::new(p, 3, colour.filled())))
         .map_err(|e| plot_err(path, e))?;
     let dx = 0.012 * (x_range.1 - x_range.0);
+    // Labels sit right of their point, except in the last tenth of the axis, where they would
+    // be cut off at the plot's edge (a PR curve ends at recall 1): there they sit left of it.
+    let right_edge = x_range.0 + 0.9 * (x_range.1 - x_range.0);
     chart
         .draw_series(points.iter().zip(labels).filter_map(|(&(x, y), l)| {
-            l.as_ref()
-                .map(|l| Text::new(l.clone(), (x + dx, y + 0.035), (FONT, 12).into_font().color(&colour)))
+            l.as_ref().map(|l| {
+                let font = (FONT, 12).into_font().color(&colour);
+                if x > right_edge {
+                    let style = font.pos(Pos::new(HPos::Right, VPos::Top));
+                    Text::new(l.clone(), (x - dx, y + 0.035), style)
+                } else {
+                    Text::new(l.clone(), (x + dx, y + 0.035), font)
+                }
+            })
         }))
         .map_err(|e| plot_err(path, e))?;
     if mark.is_none()

@@ -58,12 +58,12 @@ pub fn rigid_icp(a: RigidIcpArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             match &c.skipped {
                 Some(why) => println!("{}: skipped: {why}", c.name),
                 None => println!(
-                    "{}: {} template points, {} seeds ({} plausible) x {} yaws, {} windows, {} refined, {} accepted, {} detections ({:.2} s)",
+                    "{}: {} template points, {} seeds ({} plausible) x {}, {} windows, {} refined, {} accepted, {} detections ({:.2} s)",
                     c.name,
                     c.template_points,
                     c.seeds,
                     c.plausible_seeds,
-                    c.orientations,
+                    crate::output::count(c.orientations, "yaw", "yaws"),
                     c.windows,
                     c.refined,
                     c.accepted,

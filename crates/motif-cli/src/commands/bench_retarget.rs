@@ -338,8 +338,9 @@ fn interactive_session(mesh: &TriMesh, pitch: &[[f64; 3]], seed: u64) -> anyhow:
 
 fn print_tables(r: &Report) {
     println!(
-        "Retargeting, offsets vs dense (thesis Fig. 4.8; medians of {} runs, {} threads)",
-        r.repeats, r.threads
+        "Retargeting, offsets vs dense (thesis Fig. 4.8; {}, {} threads)",
+        if r.repeats == 1 { "one run".to_string() } else { format!("medians of {} runs", r.repeats) },
+        r.threads
     );
     println!(
         "{:<14} {:>7} {:>9} | {:>5} {:>6} {:>9} {:>9} | {:>5} {:>6} {:>9} {:>9} | {:>8} {:>8} {:>8}",

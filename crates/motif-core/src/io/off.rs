@@ -99,7 +99,7 @@ pub(super) fn read(bytes: &[u8], path: &Path) -> Result<Model> {
     };
     for i in 0..nv {
         let Some(ln) = next_record(&mut lines, path, &mut toks)? else {
-            return Err(eof(format!("{i} of {nv} vertices"), &lines));
+            return Err(eof(format!("{i} of {nv} {}", if nv == 1 { "vertex" } else { "vertices" }), &lines));
         };
         let pos = Position::Line(ln);
         let need = 3
@@ -148,7 +148,7 @@ pub(super) fn read(bytes: &[u8], path: &Path) -> Result<Model> {
     let mut polygon = Vec::with_capacity(8);
     for f in 0..nf {
         let Some(ln) = next_record(&mut lines, path, &mut toks)? else {
-            return Err(eof(format!("{f} of {nf} faces"), &lines));
+            return Err(eof(format!("{f} of {nf} {}", if nf == 1 { "face" } else { "faces" }), &lines));
         };
         let pos = Position::Line(ln);
         let k = match parse_i64(toks[0]) {
