@@ -168,13 +168,27 @@ pub fn json_path(value: &str) -> Result<PathBuf, String> {
 /// Value parser for one of `--steps`: a whole number of cells, said so when it is not one (Rust's
 /// own message was "invalid digit found in string").
 pub fn step_count(value: &str) -> Result<i32, String> {
-    value.trim().parse::<i32>().map_err(|_| {
-        "not a whole number of cells (steps are integers such as 2,1,0; negative shrinks)".to_string()
-    })
+    match value.trim().parse::<i32>() {
+        Ok(v) => Ok(v),
+        // Digits that overflow are a number, only far too large.
+        Err(_)
+            if {
+                let digits = value.trim().trim_start_matches(['-', '+']);
+                !digits.is_empty() && digits.chars().all(|c| c.is_ascii_digit())
+            } =>
+        {
+            Err("far more cells than a resize can take (the retargeting grid is limited to 10⁶ voxels)"
+                .to_string())
+        }
+        Err(_) => {
+            Err("not a whole number of cells (steps are integers such as 2,1,0; negative shrinks)"
+                .to_string())
+        }
+    }
 }
 
 /// The extension of `value`, lower case, when it names a model or picture format.
-fn model_extension(value: &str) -> Option<String> {
+pub fn model_extension(value: &str) -> Option<String> {
     let ext =
         std::path::Path::new(value).extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase)?;
     ["obj", "ply", "off", "stl", "gltf", "glb", "png", "jpg", "jpeg", "svg"]

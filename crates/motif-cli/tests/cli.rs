@@ -1928,7 +1928,11 @@ fn reports_and_errors_speak_the_command_line() {
     // A sampling radius too fine for the candidate limit is named by its flag.
     let o = motif(&["sample", "s.obj", "fine.ply", "--radius", "0.00001"], dir);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    assert!(stderr(&o).contains("--radius") && !stderr(&o).contains("oversampling"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("s.obj: --radius 0.00001:") && stderr(&o).contains("larger radius"),
+        "{}",
+        stderr(&o)
+    );
     // A binary file under a .ply name is said to be binary, not printed as escapes.
     std::fs::write(dir.join("noise.ply"), [0u8, 159, 146, 150, 7, 1, 2, 255]).unwrap();
     let o = motif(&["info", "noise.ply"], dir);

@@ -185,7 +185,14 @@ fn no_partial_group_repeats_the_global_one() {
         let d = detect_symmetries(&ex.mesh, &SymmetryDetectOptions::default()).unwrap();
         let m = metric(&d);
         let global = d.global_group().map(|g| elements(&d, g)).unwrap_or_default();
-        for g in d.report.groups.iter().filter(|g| matches!(g.scope, Scope::Part(_))) {
+        let parts: Vec<&GroupReport> =
+            d.report.groups.iter().filter(|g| matches!(g.scope, Scope::Part(_))).collect();
+        // The shelf keeps its boards' own groups (D2h, more than its global C2v) and the
+        // windmill its rotor: the filter drops repeats, not partial symmetries.
+        if name != "chair" {
+            assert!(!parts.is_empty(), "{name}: no partial group left");
+        }
+        for g in parts {
             let new = elements(&d, g)
                 .iter()
                 .filter(|e| !group_contains(&global, e, &m, 1e-6 * d.report.diagonal))

@@ -250,6 +250,18 @@ try {
   st = await until(page, (s, m) => s.redo === 0 && s.resizedSteps && s.resizedSteps[1] === m, min1);
   check(st.totalCells === sizeAfter, `redo twice: steps ${st.resizedSteps}, ${st.totalCells} cells as before the undos`);
   check(await leaveAsks(), 'leaving the page with a resized model asks first');
+  // Offsets found again remove the resized model; a size set then, undone, gives the
+  // original back (the history's older steps no longer name a size).
+  await page.click('#find-offsets');
+  st = await until(page, (s) => s.busy === null && s.resizedSteps === null);
+  await page.$eval('#step-0', (el) => { el.value = '2'; el.dispatchEvent(new Event('input')); el.dispatchEvent(new Event('change')); });
+  st = await until(page, (s) => s.resizedSteps && s.resizedSteps[0] === 2 && s.undo === 3);
+  await page.click('#undo');
+  st = await until(page, (s) => s.undo === 2 && s.busy === null);
+  const afterFind = await page.evaluate(() => window.motif.resizedShown());
+  check(!afterFind.resized && afterFind.original && st.resizedSteps === null, `offsets found again, a size, undo: the original (${JSON.stringify(afterFind)})`);
+  await page.click('#redo');
+  st = await until(page, (s) => s.resizedSteps && s.resizedSteps[0] === 2 && s.redo === 0);
   // Detections of another scan shown on the shelf come with a warning.
   await page.fill('#detections-path', 'RESULT.json');
   await page.click('#load-detections');

@@ -229,7 +229,7 @@ function onText(m) {
       // The tick box the message asks for may be below the fold.
       if (/already exists/.test(m.message)) reveal($('files'));
       if (m.request === 'set_handles') handlesFailed();
-      if (m.request === 'retarget') restoreSteps();
+      if (m.request === 'retarget') { restoreSteps(); committing = null; }
       break;
   }
 }
@@ -283,13 +283,13 @@ function onModel(m) {
   // Export names follow the model (they kept the previous model's).
   $('export-path').value = `${stem()}-edited.${$('export-format').value}`;
   $('export-resized-path').value = `${stem()}-resized.obj`;
-  handles = []; undoStack = []; redoStack = []; updateUndo();
+  handles = []; undoStack = []; redoStack = []; updateUndo(); historyBase = { handles: [], steps: null };
   inFlight = wantFrame = handlesPending = undoOnHandles = releaseWanted = false; sentAt.clear();
   clearGroup(overlays.detections); clearGroup(overlays.offsets); clearGroup(overlays.symmetry); clearGroup(overlays.handles);
   $('steps').replaceChildren(); $('resize-info').textContent = ''; $('resize-warning').hidden = true; $('detections-info').textContent = ''; $('deform-info').textContent = '';
   $('symmetry-info').textContent = '';
   if (retargetObject) { scene.remove(retargetObject); retargetObject.geometry.dispose(); retargetObject = null; }
-  state.resizedSteps = null; committing = null;
+  state.resizedSteps = null; committing = null; ignoreBelow = retargetSeq + 1;
   overlays.handles.visible = true; // hidden while a resized model covered the original
   gizmo.detach();
   if (m.annotation) onAnnotation({ annotation: m.annotation, groups: [], max_residual: null, ok: true, ms: 0 });
@@ -502,6 +502,7 @@ function onAnnotation(m) {
   handles = []; clearGroup(overlays.handles); gizmo.detach(); state.handles = 0;
   inFlight = wantFrame = handlesPending = undoOnHandles = false; sentAt.clear();
   undoStack = []; redoStack = []; updateUndo();
+  historyBase = { handles: [], steps: retargetObject ? shownSteps.slice() : null };
   if (isDeformed()) { showRest(); $('deform-info').textContent = 'no handles (a new annotation starts from the undeformed model)'; }
   requestRender();
 }
@@ -602,13 +603,16 @@ function restCentroid(h) {
   return c.multiplyScalar(1 / h.balls.length);
 }
 // One step of the undo history: the handles and, when a resized model is shown, its steps
-// (null: none shown; undefined: the offsets were found again since, so the step leaves the size
-// alone). The top of the stack is what is on screen; below the bottom lies EMPTY.
+// (null: none shown). The top of the stack is what is on screen; below the bottom lies
+// `historyBase`.
 function handlesSnapshot() {
   return handles.map((h) => ({ balls: h.balls.map((b) => ({ center: [...b.center], radius: b.radius })), matrix: h.matrix.clone() }));
 }
 function snapshot() { return { handles: handlesSnapshot(), steps: retargetObject ? shownSteps.slice() : null }; }
-const EMPTY = { handles: [], steps: null };
+// What lies below the bottom of the stack: no handles, and the size shown when the history
+// began (a new annotation clears the history but keeps a resized model on screen).
+let historyBase = { handles: [], steps: null };
+const historyTop = () => (undoStack.length ? undoStack[undoStack.length - 1] : historyBase);
 const handlesKey = (hs) => JSON.stringify(hs.map((h) => [h.balls, h.matrix.elements]));
 function pushUndo() { undoStack.push(snapshot()); redoStack = []; updateUndo(); }
 function updateUndo() { state.undo = undoStack.length; state.redo = redoStack.length; }
@@ -672,7 +676,7 @@ function onHandles(m) {
 function handlesFailed() {
   handlesPending = false;
   undoOnHandles = false;
-  const last = undoStack.length ? undoStack[undoStack.length - 1] : [];
+  const last = historyTop().handles;
   const same = JSON.stringify(last.map((h) => h.balls)) === JSON.stringify(handles.map((h) => h.balls));
   if (same && !handles.some((h) => h.fresh)) return;
   handles = last.map((h) => ({ balls: h.balls.map((b) => ({ ...b })), matrix: h.matrix.clone() }));
@@ -887,7 +891,8 @@ function followDeformation() {
 // is shown (undoing a resize does not refactor the deformation, and the reverse).
 function applyState(s) {
   if (handlesKey(s.handles) !== handlesKey(handlesSnapshot())) applyHandles(s.handles);
-  if (s.steps === undefined) return;
+  // A size typed or released just before is not committed over the step undone to.
+  committing = null;
   const now = retargetObject ? shownSteps : null;
   if (JSON.stringify(s.steps) === JSON.stringify(now)) return;
   if (s.steps === null) { clearResized(); return; }
@@ -904,7 +909,7 @@ function applyHandles(s) {
 $('undo').onclick = () => {
   if (!undoStack.length) return;
   redoStack.push(undoStack.pop());
-  applyState(undoStack.length ? undoStack[undoStack.length - 1] : EMPTY);
+  applyState(historyTop());
   updateUndo();
 };
 $('redo').onclick = () => {
@@ -939,8 +944,8 @@ function restoreSteps() {
 function onOffsets(m) {
   shownSteps = [0, 0, 0];
   clearResized(false);
-  // The sliders are new: steps kept in the history no longer name a size on them.
-  for (const e of [...undoStack, ...redoStack]) e.steps = undefined;
+  // The resized model is gone and the sliders are new: no step of the history shows a size.
+  for (const e of [...undoStack, ...redoStack, historyBase]) e.steps = null;
   clearGroup(overlays.offsets);
   state.offsets = { principal: m.principal.length, cells: m.cells, minSteps: m.min_steps, summary: m.summary };
   state.cells = m.cells; state.totalCells = m.cells.reduce((a, b) => a * b, 1);
@@ -992,12 +997,15 @@ function commitSize() {
 function maybeCommit() {
   if (!committing || !retargetObject || JSON.stringify(committing) !== JSON.stringify(shownSteps)) return;
   committing = null;
-  const top = undoStack.length ? undoStack[undoStack.length - 1] : EMPTY;
-  if (JSON.stringify(top.steps) !== JSON.stringify(shownSteps)) pushUndo();
+  if (JSON.stringify(historyTop().steps) !== JSON.stringify(shownSteps)) pushUndo();
 }
 // Removes the resized model (undo back past the first resize, offsets found again): the
 // original shows again with its handles, and the sliders go back to 0.
+// Replies to resize requests sent before this sequence number are dropped: a resize undone
+// while its reply was on the way must not come back.
+let ignoreBelow = 0;
 function clearResized(say = true) {
+  ignoreBelow = retargetSeq + 1; committing = null;
   if (!retargetObject) return;
   scene.remove(retargetObject); retargetObject.geometry.dispose(); retargetObject = null;
   shownSteps = [0, 0, 0]; restoreSteps();
@@ -1015,6 +1023,7 @@ function sendRetarget() {
   send({ type: 'retarget', seq: retargetSeq, steps: s });
 }
 function onRetargetedMesh(pos, index, m) {
+  if (m.seq < ignoreBelow) return;
   if (retargetObject) { scene.remove(retargetObject); retargetObject.geometry.dispose(); }
   const g = new THREE.BufferGeometry();
   g.setAttribute('position', new THREE.BufferAttribute(new Float32Array(pos), 3));

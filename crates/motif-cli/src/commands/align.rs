@@ -61,7 +61,11 @@ pub fn run(a: AlignArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             TriMesh { positions: target.vertices.positions.clone(), triangles: target.triangles.clone() }
                 .vertex_normals(),
         ),
-        (_, None) => Some(estimate_normals(&target.vertices.positions, &NormalsOptions::default())?),
+        (_, None) => {
+            Some(estimate_normals(&target.vertices.positions, &NormalsOptions::default()).with_context(
+                || format!("{}: the target's normals (for point-to-plane)", a.target.display()),
+            )?)
+        }
     };
     // Point-to-plane needs planes: when most target normals are zero (zero-area triangles,
     // collinear or coincident points) every residual along them would read 0 and any rotation

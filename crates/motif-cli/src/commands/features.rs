@@ -30,8 +30,9 @@ pub fn run_shot(a: ShotArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     crate::output::check_outputs(&[Some(&a.output), a.json.json.as_deref()], &inputs, g.force)?;
     // `.csv` is text, anything else the binary PEERSHOT layout; a name that says another kind of
     // file (a model, a picture, JSON) would hold bytes no reader of that kind takes.
+    let name = a.output.to_string_lossy();
     let ext = a.output.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
-    if motif_core::io::Format::from_path(&a.output).is_ok() || ["png", "json"].contains(&ext.as_str()) {
+    if crate::cli::model_extension(&name).is_some() || ext == "json" {
         return Err(bad_input(format!(
             "{}: descriptors are written as CSV (.csv) or in the binary PEERSHOT layout (.bin, .shot, ...), \
              not as .{ext}",

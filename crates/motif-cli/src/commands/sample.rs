@@ -106,7 +106,16 @@ pub fn run(a: SampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     };
     if !crate::output::json_on_stdout(&a.json.json) {
         let rad = r.radius.map(|x| format!(", radius {x:.6}")).unwrap_or_default();
-        super::written(g, &r.output, format!("{} samples, {}{rad}, {:.1} ms", r.samples, r.method, r.ms));
+        super::written(
+            g,
+            &r.output,
+            format!(
+                "{}, {}{rad}, {:.1} ms",
+                crate::output::count(r.samples, "sample", "samples"),
+                r.method,
+                r.ms
+            ),
+        );
     }
     maybe_json(&a.json.json, &r)
 }

@@ -95,8 +95,12 @@ pub fn detect(a: SymmetryDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         }
         if !det.report.approximate.is_empty() {
             println!(
-                "{} approximate symmetries (residual < {:.0e}) not annotated{}",
-                det.report.approximate.len(),
+                "{} (residual < {:.0e}) not annotated{}",
+                crate::output::count(
+                    det.report.approximate.len(),
+                    "approximate symmetry",
+                    "approximate symmetries"
+                ),
                 options.approximate_tolerance,
                 if a.approximate { "" } else { "; --approximate adds them" }
             );

@@ -14,13 +14,21 @@ pub(crate) fn perr(path: &Path, position: Position, message: impl Into<String>) 
 
 /// A token as a user can read it in an error message: lossy UTF-8, at most 40 characters.
 pub(crate) fn show(token: &[u8]) -> String {
+    // A token cut at a byte count may end inside a character: that end is not a sign of binary.
+    let token = match std::str::from_utf8(token) {
+        Err(e) if e.error_len().is_none() => &token[..e.valid_up_to()],
+        _ => token,
+    };
     let s = String::from_utf8_lossy(token);
     // Bytes that are not text (a binary file, a wrong extension) are said to be so, rather than
-    // printed as escapes and replacement characters.
-    if s.chars().any(|c| c == char::REPLACEMENT_CHARACTER || (c.is_control() && c != '\t')) {
+    // printed as escapes and replacement characters. Line ends and tabs are text.
+    if s.chars()
+        .any(|c| c == char::REPLACEMENT_CHARACTER || (c.is_control() && !matches!(c, '\t' | '\n' | '\r')))
+    {
         return "binary data, not text".to_string();
     }
-    let mut out: String = s.chars().take(40).collect();
+    let mut out: String =
+        s.chars().take(40).map(|c| if matches!(c, '\t' | '\n' | '\r') { ' ' } else { c }).collect();
     if s.chars().count() > 40 {
         out.push('…');
     }
@@ -388,6 +396,17 @@ impl FaceSink {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn tokens_are_shown_as_text_or_said_to_be_binary() {
+        assert_eq!(show(b"solid cube"), "\"solid cube\"");
+        // Cut inside a two-byte character (é): still text, shown up to the cut.
+        assert_eq!(show(&"Mxxx éxyz".as_bytes()[..6]), "\"Mxxx \"");
+        // Line ends in a JSON glTF's first bytes are text too, shown as spaces.
+        assert_eq!(show(b"{\n  \""), "\"{   \"\"");
+        assert_eq!(show(&[0, 159, 146, 150, 7]), "binary data, not text");
+        assert_eq!(show(&[0xff, b'a', b'b']), "binary data, not text");
+    }
 
     #[test]
     fn integers_parse_strictly() {

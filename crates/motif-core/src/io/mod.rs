@@ -334,9 +334,13 @@ pub fn read_mesh(path: &Path) -> Result<TriMesh> {
     let model = read(path)?;
     if !model.is_mesh() {
         return Err(Error::InvalidInput(format!(
-            "{}: has {} vertices but no faces; a triangle mesh is needed here",
+            "{}: has {} but no faces; a triangle mesh is needed here",
             path.display(),
-            model.vertices.len()
+            if model.vertices.len() == 1 {
+                "1 vertex".to_string()
+            } else {
+                format!("{} vertices", model.vertices.len())
+            }
         )));
     }
     Ok(model.into_mesh())

@@ -592,7 +592,12 @@ pub fn poisson_disc_surface(
         return Err(Error::InvalidOption {
             name: "radius",
             message: format!(
-                "about {expected:.0} samples would need {wanted:.0} candidates (limit {MAX_CANDIDATES}): use a larger radius or fewer samples"
+                "about {expected:.0} samples would need {wanted:.0} candidates (limit {MAX_CANDIDATES}): {}",
+                if matches!(options.spacing, Spacing::Radius(_)) {
+                    "use a larger radius"
+                } else {
+                    "ask for fewer samples"
+                }
             ),
         });
     }
