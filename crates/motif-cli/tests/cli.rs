@@ -1908,6 +1908,10 @@ fn reports_and_errors_speak_the_command_line() {
     assert_eq!(r["format"], "obj", "{r}");
     let o = motif(&["example", "shelf", "s.obj", "-q"], dir);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    // Shapes are named with '_', scenes with '-': either spelling finds either.
+    let o = motif(&["example", "shelf-sheared", "sh.obj"], dir);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stdout(&o).contains("shelf_sheared"), "{}", stdout(&o));
     let o = motif(&["retarget", "s.obj", "--steps", "1,0", "-o", "r.obj", "--json", "r.json"], dir);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let r: serde_json::Value =

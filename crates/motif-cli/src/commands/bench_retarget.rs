@@ -206,7 +206,7 @@ pub fn run(a: BenchRetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         let principal =
             orient_offsets(&analysis.principal.iter().map(|p| p.offset_model).collect::<Vec<_>>());
         let steps = if per_axis { steps_along_axes(&name, &principal, steps)? } else { steps };
-        say(format!("retargeting {name} by {steps:?} ..."));
+        say(format!("retargeting {name} by {steps:?} (steps along its principal offsets p0, p1, p2) ..."));
         let figures = |method| -> anyhow::Result<MethodFigures> {
             let options = RetargetOptions { method, seed: g.seed, ..Default::default() };
             let (mut cut, mut step, mut last) = (Vec::new(), Vec::new(), None);

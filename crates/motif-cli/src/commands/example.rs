@@ -23,6 +23,12 @@ pub fn run(a: ExampleArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let (Some(name), Some(output)) = (a.name.clone(), a.output().map(|p| p.to_path_buf())) else {
         return Err(bad_input("usage: motif example NAME OUT (or motif example --list)"));
     };
+    // The shapes are named with '_' (shelf_sheared) and the scenes with '-' (scene-facade); either
+    // spelling finds either.
+    let name = [name.replace('-', "_"), name.replace('_', "-")]
+        .into_iter()
+        .find(|n| procedural::names().contains(&n.as_str()) || SceneKind::from_name(n).is_some())
+        .unwrap_or(name);
     if let Some(kind) = SceneKind::from_name(&name) {
         return run_scene(kind, &output, &a, g);
     }
