@@ -667,6 +667,10 @@ pub struct DeformArgs {
     /// Same pipeline with only the identity: shows what the symmetric basis buys.
     #[arg(long)]
     pub no_symmetry: bool,
+    /// Also draw the rest shape and the deformed one side by side as a PNG, each handle marked
+    /// (fixed ones in grey; dragged ones with an arrow from where they were to their target).
+    #[arg(long, value_name = "PNG")]
+    pub preview: Option<PathBuf>,
     #[command(flatten)]
     pub json: JsonArg,
 }

@@ -1876,6 +1876,17 @@ fn reports_and_errors_speak_the_command_line() {
     let o =
         motif(&["example", "windmill", "w.obj", "--annotation", "w.json", "--handles", "h.json", "-q"], dir);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    // --preview draws the rest and deformed shapes as a PNG; another extension is refused first.
+    let args = ["deform", "w.obj", "--symmetry", "w.json", "--handles", "h.json", "-o", "p.obj", "--preview"];
+    let o = motif(&[&args[..], &["p.jpg"]].concat(), dir);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(!dir.join("p.obj").exists());
+    let o = motif(&[&args[..], &["p.png", "-q"]].concat(), dir);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let png = std::fs::read(dir.join("p.png")).unwrap();
+    assert!(png.starts_with(b"\x89PNG") && png.len() > 10_000, "{} bytes", png.len());
+    std::fs::remove_file(dir.join("p.png")).unwrap();
+    std::fs::remove_file(dir.join("p.obj")).unwrap();
     // A handle weight so large that the factorisation fails is named by its flag.
     let o = motif(
         &[

@@ -63,8 +63,11 @@ pub fn run(a: DeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             .into_iter()
             .flatten()
             .collect();
-    check_outputs(&[Some(&a.output), a.json.json.as_deref()], &inputs, g.force)?;
-    crate::output::check_output_formats(&[(Some(&a.output), crate::output::OutputKind::Model)])?;
+    check_outputs(&[Some(&a.output), a.preview.as_deref(), a.json.json.as_deref()], &inputs, g.force)?;
+    crate::output::check_output_formats(&[
+        (Some(&a.output), crate::output::OutputKind::Model),
+        (a.preview.as_deref(), crate::output::OutputKind::Png),
+    ])?;
     let t0 = Instant::now();
     let mesh = motif_core::io::read_mesh(&a.mesh)?;
     let annotation = match &a.symmetry {
@@ -165,6 +168,30 @@ pub fn run(a: DeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     };
     let out_mesh = motif_core::TriMesh { positions, triangles: mesh.triangles.clone() };
     motif_core::io::write(&a.output, &Model::from_mesh(&out_mesh), &WriteOptions::default())?;
+    if let Some(png) = &a.preview {
+        let last = frames.last().map(|f| f.as_slice()).unwrap_or_default();
+        let mut notes = vec![(
+            match &residual {
+                Some(r) => {
+                    format!("symmetry residual {:.1e} of the diagonal (rest shape {:.1e})", r.max, r.rest_max)
+                }
+                None => "no symmetry annotation".to_string(),
+            },
+            false,
+        )];
+        let worst = session.handle_fit().iter().map(|f| f.max_error).fold(0.0, f64::max);
+        notes.push((
+            format!("handles within {worst:.1e} of the diagonal of their targets"),
+            worst > HANDLE_FIT_WARNING,
+        ));
+        let title = format!(
+            "{}: rest (left) and deformed (right){}",
+            a.mesh.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(),
+            if a.no_symmetry { ", symmetry ignored" } else { ", every annotated symmetry kept" }
+        );
+        draw_preview(&mesh, &out_mesh, &handles.handles, last, title, notes, png)?;
+        super::note(g, format!("wrote {}", png.display()));
+    }
 
     let stats = session.stats().clone();
     let report = DeformReport {
@@ -255,4 +282,72 @@ fn with_flag_names(e: motif_deform::DeformError) -> anyhow::Error {
         return bad_input(format!("{e}; or pass --force to deform on the approximate symmetry"));
     }
     e.into()
+}
+
+/// The picture of `--preview`: rest and deformed shapes side by side (the renderer of
+/// `motif retarget --preview`), seen along the rest shape's thinnest box axis at a slant, with Y
+/// up (Z when Y is the thin axis), each handle marked at the centre of its vertices: grey when
+/// fixed, red with an arrow from where it was to where the last frame asks it to go, and blue
+/// where it went when that is more than 1% of the diagonal short of its target.
+#[allow(clippy::too_many_arguments)]
+fn draw_preview(
+    rest: &motif_core::TriMesh,
+    deformed: &motif_core::TriMesh,
+    handles: &[motif_deform::Handle],
+    transforms: &[[[f64; 4]; 4]],
+    title: String,
+    notes: Vec<(String, bool)>,
+    png: &std::path::Path,
+) -> anyhow::Result<()> {
+    use motif_core::geometry::{IDENTITY4, dist, transform_point};
+    use motif_retarget::plot::{PreviewMark, PreviewText, plot_retarget_preview};
+    let Some(bbox) = rest.aabb() else { return Ok(()) };
+    let e = bbox.extent();
+    let thin = (0..3).min_by(|&i, &j| e[i].total_cmp(&e[j]).then(i.cmp(&j))).unwrap_or(2);
+    let up_axis = if thin == 1 { 2 } else { 1 };
+    let right_axis = 3 - thin - up_axis;
+    let mut view = [0.0; 3];
+    view[thin] = -1.0;
+    view[up_axis] = -0.25;
+    view[right_axis] = -0.4;
+    let mut up = [0.0; 3];
+    up[up_axis] = 1.0;
+    let diag = bbox.diagonal();
+    let centre = |m: &motif_core::TriMesh, idx: &[usize]| {
+        let mut c = [0.0; 3];
+        for &i in idx {
+            for (k, ck) in c.iter_mut().enumerate() {
+                *ck += m.positions[i][k] / idx.len() as f64;
+            }
+        }
+        c
+    };
+    let (grey, red, blue) = ([90, 90, 90], [200, 40, 40], [30, 110, 200]);
+    let mut marks = Vec::new();
+    for (i, h) in handles.iter().enumerate() {
+        let idx = h.region.vertex_indices(rest, 1e-9 * diag);
+        if idx.is_empty() {
+            continue;
+        }
+        let at = centre(rest, &idx);
+        let m = transforms.get(i).copied().unwrap_or(IDENTITY4);
+        let target = transform_point(&m, at);
+        let mark = |panel, at, from, label: String, colour| PreviewMark { panel, at, from, label, colour };
+        if dist(target, at) <= 1e-9 * diag {
+            marks.push(mark(0, at, None, format!("handle {i} (fixed)"), grey));
+            marks.push(mark(1, at, None, format!("handle {i} (fixed)"), grey));
+            continue;
+        }
+        marks.push(mark(0, at, None, format!("handle {i}"), red));
+        let reached = centre(deformed, &idx);
+        if dist(reached, target) > 0.01 * diag {
+            marks.push(mark(1, target, Some(at), format!("handle {i} target"), red));
+            marks.push(mark(1, reached, None, format!("handle {i} reached"), blue));
+        } else {
+            marks.push(mark(1, target, Some(at), format!("handle {i}, target reached"), red));
+        }
+    }
+    let text = PreviewText { title, notes, output_groups: None, marks };
+    plot_retarget_preview(rest, deformed, view, up, &text, png)?;
+    Ok(())
 }
