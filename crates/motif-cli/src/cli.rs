@@ -872,6 +872,11 @@ pub struct SymmetryDetectArgs {
     /// Also annotate approximate symmetries (residual below 1e-2 of the diagonal).
     #[arg(long)]
     pub approximate: bool,
+    /// Also draw the model and its symmetry elements as a PNG: the global group's mirror planes
+    /// (orange outlines) and rotation axes (green), and the partial groups' elements (pink),
+    /// each labelled.
+    #[arg(long, value_name = "PNG")]
+    pub plot: Option<PathBuf>,
     #[command(flatten)]
     pub json: JsonArg,
 }

@@ -2025,3 +2025,21 @@ fn an_interrupted_write_leaves_no_temporary_file() {
         assert!(temps().is_empty(), "{flag}: {:?}", temps());
     }
 }
+
+/// `symmetry detect --plot` draws the model and its symmetry elements; a name that is not a PNG
+/// is refused before any work.
+#[test]
+fn symmetry_detect_draws_its_elements() {
+    let d = tmp();
+    let dir = d.path();
+    assert_eq!(motif(&["example", "chair", "c.obj", "-q"], dir).status.code(), Some(0));
+    let o = motif(&["symmetry", "detect", "c.obj", "-o", "c.sym.json", "--plot", "c.jpg"], dir);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(!dir.join("c.sym.json").exists());
+    let o = motif(&["symmetry", "detect", "c.obj", "-o", "c.sym.json", "--plot", "c.png"], dir);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stderr(&o).contains("wrote c.png"), "{}", stderr(&o));
+    let png = std::fs::read(dir.join("c.png")).unwrap();
+    assert!(png.starts_with(b"\x89PNG") && png.len() > 10_000, "{} bytes", png.len());
+    assert_no_stray_files(dir);
+}

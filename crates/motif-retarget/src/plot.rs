@@ -934,6 +934,11 @@ pub struct PreviewText {
     /// Points drawn over the meshes (the handles of a deformation: where a handle was, where
     /// it was dragged), so a reader sees what moved without reading the caption.
     pub marks: Vec<PreviewMark>,
+    /// The names of the two panels in their size lines; `None`: "input" and "output".
+    pub panel_names: Option<[String; 2]>,
+    /// A line that replaces a panel's size line (the right panel of `motif symmetry detect
+    /// --plot` holds the model and drawn elements, whose box and triangles mean nothing).
+    pub panel_captions: [Option<String>; 2],
 }
 
 /// A point drawn over one panel of [`plot_retarget_preview`]: a ring at `at` with a label, and
@@ -1120,20 +1125,19 @@ pub fn plot_retarget_preview(
         }
         // The bounding box's sides, not the on-screen extents (the view is tilted, so those
         // mixed the axes: the shelf's 1.7 × 1.13 read 1.704 × 1.317).
-        for (k, (name, mesh)) in [("input", input), ("output", output)].into_iter().enumerate() {
+        let names = preview.panel_names.clone().unwrap_or_else(|| ["input".into(), "output".into()]);
+        for (k, (name, mesh)) in [(&names[0], input), (&names[1], output)].into_iter().enumerate() {
             let e = mesh.aabb().map(|b| b.extent()).unwrap_or([0.0; 3]);
-            text(
-                &format!(
+            let line = preview.panel_captions[k].clone().unwrap_or_else(|| {
+                format!(
                     "{name}: {:.3} × {:.3} × {:.3} (bounding box, model units), {} triangles",
                     e[0],
                     e[1],
                     e[2],
                     mesh.triangles.len()
-                ),
-                (k * panel_w) as i32 + 12,
-                top as i32 - 26,
-                15,
-            )?;
+                )
+            });
+            text(&line, (k * panel_w) as i32 + 12, top as i32 - 26, 15)?;
         }
         root.draw(&PathElement::new(
             vec![(panel_w as i32, top as i32), (panel_w as i32, h as i32)],

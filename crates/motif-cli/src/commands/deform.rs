@@ -302,16 +302,7 @@ fn draw_preview(
     use motif_core::geometry::{IDENTITY4, dist, transform_point};
     use motif_retarget::plot::{PreviewMark, PreviewText, plot_retarget_preview};
     let Some(bbox) = rest.aabb() else { return Ok(()) };
-    let e = bbox.extent();
-    let thin = (0..3).min_by(|&i, &j| e[i].total_cmp(&e[j]).then(i.cmp(&j))).unwrap_or(2);
-    let up_axis = if thin == 1 { 2 } else { 1 };
-    let right_axis = 3 - thin - up_axis;
-    let mut view = [0.0; 3];
-    view[thin] = -1.0;
-    view[up_axis] = -0.25;
-    view[right_axis] = -0.4;
-    let mut up = [0.0; 3];
-    up[up_axis] = 1.0;
+    let (view, up) = slanted_camera(rest);
     let diag = bbox.diagonal();
     let centre = |m: &motif_core::TriMesh, idx: &[usize]| {
         let mut c = [0.0; 3];
@@ -347,7 +338,29 @@ fn draw_preview(
             marks.push(mark(1, target, Some(at), format!("handle {i}, target reached"), red));
         }
     }
-    let text = PreviewText { title, notes, output_groups: None, marks };
+    let text = PreviewText {
+        title,
+        notes,
+        marks,
+        panel_names: Some(["rest".into(), "deformed".into()]),
+        ..Default::default()
+    };
     plot_retarget_preview(rest, deformed, view, up, &text, png)?;
     Ok(())
+}
+
+/// The camera of the `--preview` and `symmetry detect --plot` pictures: along the bounding box's
+/// thinnest axis at a slant (as the demo shows the windmill), Y up (Z when Y is the thin axis).
+pub(crate) fn slanted_camera(mesh: &motif_core::TriMesh) -> ([f64; 3], [f64; 3]) {
+    let e = mesh.aabb().map_or([1.0; 3], |b| b.extent());
+    let thin = (0..3).min_by(|&i, &j| e[i].total_cmp(&e[j]).then(i.cmp(&j))).unwrap_or(2);
+    let up_axis = if thin == 1 { 2 } else { 1 };
+    let right_axis = 3 - thin - up_axis;
+    let mut view = [0.0; 3];
+    view[thin] = -1.0;
+    view[up_axis] = -0.25;
+    view[right_axis] = -0.4;
+    let mut up = [0.0; 3];
+    up[up_axis] = 1.0;
+    (view, up)
 }

@@ -182,7 +182,7 @@ pub(crate) fn preview_text(
             true,
         ));
     }
-    motif_retarget::plot::PreviewText { title, notes, output_groups: Some(groups), marks: Vec::new() }
+    motif_retarget::plot::PreviewText { title, notes, output_groups: Some(groups), ..Default::default() }
 }
 
 /// The preview camera: a three-quarter view (about 25° off the normal, so that recesses and
@@ -314,8 +314,7 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             let text = motif_retarget::plot::PreviewText {
                 title: format!("{}: plain resize (no repetition to follow)", a.mesh.display()),
                 notes: vec![("every part is stretched by the same factor per axis".to_string(), false)],
-                output_groups: None,
-                marks: Vec::new(),
+                ..Default::default()
             };
             motif_retarget::plot::plot_retarget_preview(&mesh, &out, view, up, &text, p)?;
         }
