@@ -939,6 +939,10 @@ pub struct PreviewText {
     /// A line that replaces a panel's size line (the right panel of `motif symmetry detect
     /// --plot` holds the model and drawn elements, whose box and triangles mean nothing).
     pub panel_captions: [Option<String>; 2],
+    /// Both panels framed alike (centred on the union of both), so that what did not move is
+    /// drawn at the same place in each (a deformation); otherwise each panel is centred on its
+    /// own mesh (a resized model is larger).
+    pub shared_frame: bool,
 }
 
 /// A point drawn over one panel of [`plot_retarget_preview`]: a ring at `at` with a label, and
@@ -969,6 +973,17 @@ const COPY_COLOURS: [[f64; 3]; 8] = [
     [190.0, 150.0, 120.0],
 ];
 
+/// The camera's screen right, screen up and viewing direction for a camera looking along `view`
+/// with `up` towards the top of the screen (made orthogonal to `view`). Looking along d with v
+/// up, right is d × v: v × d, used until 2026-11-30, drew every model mirrored.
+fn screen_axes(view: [f64; 3], up: [f64; 3]) -> Option<[[f64; 3]; 3]> {
+    use motif_core::geometry::{cross, dot, normalize, sub};
+    let d = normalize(view)?;
+    let up = sub(up, d.map(|c| c * dot(up, d)));
+    let v = normalize(up).or_else(|| normalize(cross(d, [1.0, 0.0, 0.0]))).unwrap_or([0.0, 1.0, 0.0]);
+    Some([cross(d, v), v, d])
+}
+
 /// A side-by-side picture of a model before and after retargeting (`motif retarget --preview
 /// PNG`): both meshes rendered with the same orthographic camera and scale by a small z-buffer
 /// rasteriser (flat shading, two-sided, lit from the upper left in front, with dark outlines
@@ -988,10 +1003,7 @@ pub fn plot_retarget_preview(
     path: &Path,
 ) -> Result<()> {
     use motif_core::geometry::{cross, dot, normalize, sub};
-    let d = normalize(view).ok_or_else(|| plot_err(path, "zero view direction"))?;
-    let up = sub(up, d.map(|c| c * dot(up, d)));
-    let v = normalize(up).or_else(|| normalize(cross(d, [1.0, 0.0, 0.0]))).unwrap_or([0.0, 1.0, 0.0]);
-    let u = cross(v, d);
+    let [u, v, d] = screen_axes(view, up).ok_or_else(|| plot_err(path, "zero view direction"))?;
     let project = |p: [f64; 3]| (dot(p, u), dot(p, v), dot(p, d));
     // Common scale: the larger of the two meshes' screen extents fits its panel.
     let extent = |m: &motif_core::TriMesh| {
@@ -1003,7 +1015,22 @@ pub fn plot_retarget_preview(
             },
         )
     };
-    let (ei, eo) = (extent(input), extent(output));
+    // Each panel frames its mesh and the marks drawn on it (a handle's target off the mesh);
+    // with `shared_frame` both panels frame the union, so what did not move stays in place.
+    let with_marks = |mut e: [f64; 4], k: usize| {
+        for m in preview.marks.iter().filter(|m| m.panel == k) {
+            for p in std::iter::once(m.at).chain(m.from) {
+                let (x, y, _) = project(p);
+                e = [e[0].min(x), e[1].max(x), e[2].min(y), e[3].max(y)];
+            }
+        }
+        e
+    };
+    let (mut ei, mut eo) = (with_marks(extent(input), 0), with_marks(extent(output), 1));
+    if preview.shared_frame {
+        let u = [ei[0].min(eo[0]), ei[1].max(eo[1]), ei[2].min(eo[2]), ei[3].max(eo[3])];
+        (ei, eo) = (u, u);
+    }
     let (panel_w, panel_h) = (700usize, 620usize);
     let top = 60 + 20 * preview.notes.len();
     let span = (ei[1] - ei[0]).max(eo[1] - eo[0]).max((ei[3] - ei[2]).max(eo[3] - eo[2]) * 700.0 / 620.0);
@@ -1184,16 +1211,51 @@ pub fn plot_retarget_preview(
             }
             root.draw(&Circle::new(at, 9, colour.stroke_width(3))).map_err(|e| plot_err(path, e))?;
         }
+        // Each label on a white box beside its ring: right of it, else left of it, moved up or
+        // down in steps of a line until it covers no other label and no ring, and inside its
+        // panel below the captions (first free place; the nearest if none is free).
+        let size = 15;
+        let rings: Vec<(i32, i32)> = placed.iter().map(|p| p.1).collect();
+        let mut boxes: Vec<[i32; 4]> = Vec::new();
         for &(m, at, _) in &placed {
             let colour = RGBColor(m.colour[0], m.colour[1], m.colour[2]);
-            // The label on a white box beside the ring, centred on it, kept inside its panel and
-            // below the captions (the box assumes about 8 pixels per character of the 15-pixel
-            // font).
-            let size = 15;
-            let width = (m.label.chars().count() as i32) * 8 + 8;
-            let (x_lo, x_hi) = ((m.panel * panel_w) as i32 + 4, ((m.panel + 1) * panel_w) as i32 - width - 4);
-            let lx = (at.0 + 14).clamp(x_lo, x_hi.max(x_lo));
-            let ly = (at.1 - 10).max(top as i32 + 2);
+            let width =
+                motif_core::plotting::text_width(&m.label, size as f64, FontStyle::Normal).ceil() as i32 + 6;
+            let (x_lo, x_hi) = ((m.panel * panel_w) as i32 + 4, ((m.panel + 1) * panel_w) as i32 - 4);
+            let (y_lo, y_hi) = (top as i32 + 2, h as i32 - size - 6);
+            let fits = |b: [i32; 4]| b[0] >= x_lo && b[2] <= x_hi && b[1] >= y_lo && b[3] <= y_hi + size + 4;
+            let clear = |b: [i32; 4]| {
+                boxes.iter().all(|o| b[2] < o[0] || b[0] > o[2] || b[3] < o[1] || b[1] > o[3])
+                    && rings
+                        .iter()
+                        .all(|r| r.0 + 10 < b[0] || r.0 - 10 > b[2] || r.1 + 10 < b[1] || r.1 - 10 > b[3])
+            };
+            let candidate = |dx: i32, dy: i32| {
+                let lx = if dx >= 0 { at.0 + 14 } else { at.0 - 14 - width };
+                let ly = at.1 - 10 + dy;
+                [lx - 3, ly - 2, lx + width, ly + size + 4]
+            };
+            let mut choice = None;
+            'search: for step in 0..8 {
+                for dy in if step == 0 { vec![0] } else { vec![-(size + 8) * step, (size + 8) * step] } {
+                    for dx in [1, -1] {
+                        let b = candidate(dx, dy);
+                        if fits(b) && clear(b) {
+                            choice = Some(b);
+                            break 'search;
+                        }
+                    }
+                }
+            }
+            let b = choice.unwrap_or_else(|| {
+                // No free place: right of the ring if it fits, else left, kept in the panel.
+                let b = candidate(if candidate(1, 0)[2] <= x_hi { 1 } else { -1 }, 0);
+                let sx = (x_lo - b[0]).max(0) - (b[2] - x_hi).max(0);
+                let sy = (y_lo - b[1]).max(0);
+                [b[0] + sx, b[1] + sy, b[2] + sx, b[3] + sy]
+            });
+            boxes.push(b);
+            let (lx, ly) = (b[0] + 3, b[1] + 2);
             root.draw(&Rectangle::new(
                 [(lx - 3, ly - 2), (lx + width, ly + size + 4)],
                 WHITE.mix(0.85).filled(),
@@ -1205,4 +1267,24 @@ pub fn plot_retarget_preview(
         root.present().map_err(|e| plot_err(path, e))?;
     }
     motif_core::io::write_png_rgb(path, w as u32, h as u32, &rgb).map_err(|e| plot_err(path, e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A camera looking down −z with y up sees +x on the right (as OpenGL's default camera and
+    /// Blender's front view do), and the screen frame is right-handed for any view: right × up
+    /// points back at the viewer. (The preview drew mirror images before.)
+    #[test]
+    fn the_preview_camera_keeps_handedness() {
+        let [u, v, d] = screen_axes([0.0, 0.0, -1.0], [0.0, 1.0, 0.0]).unwrap();
+        assert_eq!((u, v, d), ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]));
+        for (view, up) in [([-0.4, -0.25, -1.0], [0.0, 1.0, 0.0]), ([1.0, 2.0, 0.5], [0.0, 0.0, 1.0])] {
+            let [u, v, d] = screen_axes(view, up).unwrap();
+            let back = motif_core::geometry::cross(u, v);
+            assert!((0..3).all(|k| (back[k] + d[k]).abs() < 1e-12), "{back:?} vs {d:?}");
+        }
+        assert!(screen_axes([0.0; 3], [0.0, 1.0, 0.0]).is_none());
+    }
 }

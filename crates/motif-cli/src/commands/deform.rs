@@ -187,7 +187,13 @@ pub fn run(a: DeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         let title = format!(
             "{}: rest (left) and deformed (right){}",
             a.mesh.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(),
-            if a.no_symmetry { ", symmetry ignored" } else { ", every annotated symmetry kept" }
+            if a.no_symmetry {
+                ", symmetry ignored"
+            } else if annotation.symmetries.is_empty() {
+                ", no symmetry annotated"
+            } else {
+                ", every annotated symmetry kept"
+            }
         );
         draw_preview(&mesh, &out_mesh, &handles.handles, last, title, notes, png)?;
         super::note(g, format!("wrote {}", png.display()));
@@ -238,9 +244,9 @@ pub fn run(a: DeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             if a.no_symmetry { " (symmetry ignored)" } else { "" }
         );
         println!(
-            "prefactor {:.1} ms; per frame ({} frames): solve {:.2} ms, lift {:.2} ms, total {:.2} ms median",
+            "prefactor {:.1} ms; per frame ({}): solve {:.2} ms, lift {:.2} ms, total {:.2} ms median",
             report.prefactor_ms,
-            report.frames,
+            crate::output::count(report.frames, "frame", "frames"),
             report.solve_ms.median,
             report.lift_ms.median,
             report.frame_ms.median
@@ -326,7 +332,14 @@ fn draw_preview(
         let mark = |panel, at, from, label: String, colour| PreviewMark { panel, at, from, label, colour };
         if dist(target, at) <= 1e-9 * diag {
             marks.push(mark(0, at, None, format!("handle {i} (fixed)"), grey));
-            marks.push(mark(1, at, None, format!("handle {i} (fixed)"), grey));
+            // A fixed handle the symmetries pull away (the handles are soft) says so.
+            let reached = centre(deformed, &idx);
+            if dist(reached, at) > 0.01 * diag {
+                marks.push(mark(1, at, None, format!("handle {i} (fixed)"), grey));
+                marks.push(mark(1, reached, Some(at), format!("handle {i} moved"), blue));
+            } else {
+                marks.push(mark(1, at, None, format!("handle {i} (fixed)"), grey));
+            }
             continue;
         }
         marks.push(mark(0, at, None, format!("handle {i}"), red));
@@ -343,6 +356,7 @@ fn draw_preview(
         notes,
         marks,
         panel_names: Some(["rest".into(), "deformed".into()]),
+        shared_frame: true,
         ..Default::default()
     };
     plot_retarget_preview(rest, deformed, view, up, &text, png)?;

@@ -77,9 +77,11 @@ pub fn detect(a: SymmetryDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 })
                 .map(|c| format!(" ({:.1e} at the vertices, as `symmetry check` measures)", c.max_residual))
                 .unwrap_or_default();
+            // A partial group also names its entry in the annotation (`--plot` labels it so):
+            // nested groups of one part share the part's number.
             let scope = match gr.scope {
                 Scope::Global => "global".to_string(),
-                Scope::Part(i) => format!("part {i}"),
+                Scope::Part(i) => format!("part {i} #{k}"),
             };
             // Nested partial symmetries of one part (thesis Fig. 3.3: the sails alone, then the
             // rotor) differ in their regions, so each line says how much of the mesh it holds.
@@ -88,7 +90,7 @@ pub fn detect(a: SymmetryDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 None => String::new(),
             };
             println!(
-                "{scope:<8} {}{region}; max residual {:.1e} of the diagonal over surface samples{at_vertices}{}",
+                "{scope:<11} {}{region}; max residual {:.1e} of the diagonal over surface samples{at_vertices}{}",
                 gr.name,
                 gr.max_residual,
                 if gr.possibly_continuous { " (possibly a surface of revolution)" } else { "" }
@@ -331,10 +333,8 @@ fn plot_symmetries(
                 SymmetryElement::Mirror { .. } => (1, orange),
                 _ => (2, green),
             };
-            let prefix = match gr.scope {
-                Scope::Global => String::new(),
-                Scope::Part(i) => format!("part {i}: "),
-            };
+            // Partial groups are named by their entry in the written annotation.
+            let prefix = if global { String::new() } else { format!("#{k}: ") };
             match *el {
                 SymmetryElement::Mirror { normal, point } => {
                     let text = format!("{prefix}mirror");
@@ -367,6 +367,14 @@ fn plot_symmetries(
                         continue;
                     }
                     if let Some((p, q)) = clip_line(point, axis, lo, hi) {
+                        // At least 60% of the diagonal long, about the box's middle, so that an
+                        // axis across a flat model shows.
+                        let (p, q) = {
+                            use motif_core::geometry::{add, dist, scale, sub};
+                            let half = 0.5 * dist(p, q).max(0.6 * diag);
+                            let mid = add(p, scale(sub(q, p), 0.5));
+                            (add(mid, scale(axis, -half)), add(mid, scale(axis, half)))
+                        };
                         stick(&mut overlay, &mut groups, p, q, 1.5 * t, group);
                         drawn.push((false, axis, point, marks.len()));
                         label(&mut marks, q, text, colour, None);
@@ -400,12 +408,21 @@ fn plot_symmetries(
         }
     );
     let notes = vec![(
-        "generators of each group, as the text lists them; a plane is drawn as its outline in the \
-         group's box"
-            .to_string(),
+        if det.report.groups.is_empty() {
+            "nothing to draw".to_string()
+        } else {
+            "generators of each group, as the text lists them; a plane is drawn as its outline in the \
+             group's box (padded by 4% of the diagonal)"
+                .to_string()
+        },
         false,
     )];
-    let (view, up) = super::deform::slanted_camera(mesh);
+    // More slanted than the deformation's view, so that an axis along the thinnest side (a
+    // fan's, a gear's) is seen as a line, not a point.
+    let (mut view, up) = super::deform::slanted_camera(mesh);
+    for (c, u) in view.iter_mut().zip(up) {
+        *c -= 0.5 * u;
+    }
     let text = PreviewText {
         title,
         notes,
@@ -414,8 +431,14 @@ fn plot_symmetries(
         panel_names: Some(["model".into(), String::new()]),
         panel_captions: [
             None,
-            Some("mirror planes (orange) and rotation axes (green) of the global group; partial groups' (pink)".into()),
+            Some(if det.report.groups.is_empty() {
+                "no symmetry found within the tolerance".into()
+            } else {
+                "global group: mirror planes (orange), axes (green); partial groups (pink, #: annotation entry)"
+                    .into()
+            }),
         ],
+        shared_frame: true,
     };
     plot_retarget_preview(mesh, &overlay, view, up, &text, png)?;
     Ok(())
