@@ -165,7 +165,7 @@ fn round_trip(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
             back.vertices.len() == ex.mesh.num_vertices() && back.triangles.len() == ex.mesh.num_triangles();
         lines.push(format!(
             "{:<4} {} vertices, {} triangles, max position error {}{}",
-            format!("{}:", Format::from_path(&p)?.name().to_uppercase()),
+            format!("{}:", Format::from_path(&p)?.extension().to_uppercase()),
             back.vertices.len(),
             back.triangles.len(),
             if err == 0.0 { "0".to_string() } else { format!("{err:.1e}") },

@@ -46,7 +46,7 @@ pub fn run(a: InfoArgs, _g: &GlobalArgs) -> anyhow::Result<()> {
     let edges = mesh.edge_stats();
     let r = InfoReport {
         file: a.input.display().to_string(),
-        format: model.format.name().to_string(),
+        format: model.format.extension().to_string(),
         kind: if model.is_mesh() { "mesh" } else { "point cloud" },
         vertices: mesh.num_vertices(),
         faces_in_file: model.source_faces,

@@ -64,19 +64,6 @@ pub enum Format {
 }
 
 impl Format {
-    /// The format's usual extension and short name, as reports spell it: `obj`, `ply`, `off`,
-    /// `stl`, `gltf`, `glb`.
-    pub fn name(self) -> &'static str {
-        match self {
-            Format::Obj => "obj",
-            Format::Ply => "ply",
-            Format::Off => "off",
-            Format::Stl => "stl",
-            Format::Gltf => "gltf",
-            Format::Glb => "glb",
-        }
-    }
-
     /// The format named by a path's extension (case-insensitive).
     pub fn from_path(path: &Path) -> Result<Format> {
         let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
