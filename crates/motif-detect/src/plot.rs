@@ -665,10 +665,19 @@ pub const CLASS_COLOURS: [[u8; 3]; 10] = [
 const MAX_DRAWN: usize = 400_000;
 
 /// A picture of a detection (`motif detect --plot PNG`, 1800 × 900 pixels): the points seen
-/// along two world axes (the model's thinnest axis, then its middle one: a facade from the front
-/// and from above), coloured by class with the background light grey, each instance's box
+/// along two world axes, coloured by class with the background light grey, each instance's box
 /// outlined in its class's colour, and a legend of the classes with their instance counts.
 /// `labels[i]` is point i's `(class, instance)`.
+///
+/// The first view looks along the axis in which the instance boxes, projected, overlap each other
+/// least ([`view_axes`]), so that each block is seen apart: a facade or a street from the front,
+/// parts standing on the ground from above. The points' thinnest extent, which this view used
+/// to follow, picks the ground view of a street whose depth (pavement, parked cars, the far
+/// side) is a little less than its height, where every window collapses onto one line. The
+/// second view looks along the axis of the next least overlap. Without instances, the points'
+/// extents order the axes.
+/// Both views are drawn to scale (one model unit spans as many pixels across as up), so a
+/// window keeps its shape.
 pub fn plot_detections(
     positions: &[motif_core::Point3],
     labels: &[Option<(u32, u32)>],
@@ -682,8 +691,8 @@ pub fn plot_detections(
     let bounds = motif_core::geometry::Aabb::from_points(positions)
         .ok_or_else(|| plot_err(path, "no points to draw"))?;
     let (lo, hi) = (bounds.min, bounds.max);
-    let mut axes = [0usize, 1, 2];
-    axes.sort_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])));
+    let axes = view_axes(result, lo, hi);
+    let spread_named = result.classes.iter().any(|c| !c.instances.is_empty());
     // Each panel drops one axis and keeps the other two in x, y, z order.
     let panels: Vec<(usize, usize, usize)> = axes[..2]
         .iter()
@@ -702,28 +711,47 @@ pub fn plot_detections(
         root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
         let root = root.titled(title, (FONT, 20)).map_err(|e| plot_err(path, e))?;
         let (views, legend) = root.split_horizontally(size.0 - 300);
-        let areas = views.split_evenly((2, 1));
+        // Stacked or side by side, whichever draws both views larger (to scale, the smaller
+        // of the two scales counts): a long street stacks, a tall facade stands side by side.
+        let (vw, vh) = views.dim_in_pixel();
+        let scale_in = |pw: f64, ph: f64| {
+            panels
+                .iter()
+                .map(|&(_, a, b)| {
+                    // Label areas, margins and caption, roughly as laid out below.
+                    let (w, h) = ((pw - 80.0).max(1.0), (ph - 90.0).max(1.0));
+                    (w / (1.04 * (hi[a] - lo[a])).max(1e-12)).min(h / (1.04 * (hi[b] - lo[b])).max(1e-12))
+                })
+                .fold(f64::INFINITY, f64::min)
+        };
+        let stacked = scale_in(vw as f64, vh as f64 / 2.0) >= scale_in(vw as f64 / 2.0, vh as f64);
+        let areas = views.split_evenly(if stacked { (2, 1) } else { (1, 2) });
         let name = ["x", "y", "z"];
-        for (area, &(drop, a, b)) in areas.iter().zip(&panels) {
+        for (k, (area, &(drop, a, b))) in areas.iter().zip(&panels).enumerate() {
+            let caption = match (k, spread_named) {
+                (0, true) => format!("seen along {} (where the instance boxes overlap least)", name[drop]),
+                (_, true) => format!("seen along {} (the next least overlap)", name[drop]),
+                (0, false) => format!("seen along {} (the points' thinnest extent)", name[drop]),
+                (_, false) => format!("seen along {} (the points' middle extent)", name[drop]),
+            };
             let pad = |k: usize| 0.02 * (hi[k] - lo[k]).max(1e-9);
-            let mut chart = ChartBuilder::on(area)
-                .caption(
-                    format!(
-                        "seen along {} (the points' {} extent)",
-                        name[drop],
-                        if drop == axes[0] { "thinnest" } else { "middle" }
-                    ),
-                    (FONT, 16).into_font(),
-                )
-                .margin(10)
-                .x_label_area_size(32)
-                .y_label_area_size(50)
-                .build_cartesian_2d((lo[a] - pad(a))..(hi[a] + pad(a)), (lo[b] - pad(b))..(hi[b] + pad(b)))
-                .map_err(|e| plot_err(path, e))?;
+            let (xr, yr) = ((lo[a] - pad(a))..(hi[a] + pad(a)), (lo[b] - pad(b))..(hi[b] + pad(b)));
+            // The plotting area's size in pixels, from a chart laid out the same way on a
+            // scratch canvas, sets ranges of equal scale.
+            let (w, h) = area.dim_in_pixel();
+            let mut scratch = vec![0u8; w as usize * h as usize * 3];
+            let plot_px = {
+                let probe = BitMapBackend::with_buffer(&mut scratch, (w, h)).into_drawing_area();
+                let chart =
+                    view_chart(&probe, &caption, xr.clone(), yr.clone()).map_err(|e| plot_err(path, e))?;
+                chart.plotting_area().dim_in_pixel()
+            };
+            let (xr, yr) = equal_scale(xr, yr, plot_px);
+            let mut chart = view_chart(area, &caption, xr, yr).map_err(|e| plot_err(path, e))?;
             chart
                 .configure_mesh()
-                .x_desc(name[a])
-                .y_desc(name[b])
+                .x_desc(format!("{} (model units)", name[a]))
+                .y_desc(format!("{} (model units)", name[b]))
                 .disable_mesh()
                 .label_style((FONT, 12))
                 .axis_desc_style((FONT, 13))
@@ -800,4 +828,79 @@ pub fn plot_detections(
         root.present().map_err(|e| plot_err(path, e))?;
     }
     motif_core::io::write_png_rgb(path, size.0, size.1, &buf).map_err(|e| plot_err(path, e))
+}
+
+/// The view axes of [`plot_detections`], best first: the axis along which the instance boxes,
+/// projected, overlap each other least (the summed areas of the pairwise intersections over the
+/// summed areas of the boxes), so that each box is seen apart from the others; by the points'
+/// extents (thinnest first) when there are fewer than two instances, and to break ties.
+fn view_axes(result: &crate::DetectionResult, lo: motif_core::Point3, hi: motif_core::Point3) -> [usize; 3] {
+    // Enough boxes to judge the views; evenly strided beyond that, as quadratic work.
+    const MAX_BOXES: usize = 1500;
+    let boxes: Vec<([f64; 3], [f64; 3])> =
+        result.classes.iter().flat_map(|c| &c.instances).map(|i| (i.bbox_min, i.bbox_max)).collect();
+    let stride = boxes.len().div_ceil(MAX_BOXES).max(1);
+    let boxes: Vec<_> = boxes.into_iter().step_by(stride).collect();
+    let extent = |k: usize| hi[k] - lo[k];
+    let overlap = |drop: usize| {
+        if boxes.len() < 2 {
+            return 0.0;
+        }
+        let kept: Vec<usize> = (0..3).filter(|&k| k != drop).collect();
+        let side = |b: &([f64; 3], [f64; 3]), k: usize| (b.1[k] - b.0[k]).max(1e-3 * extent(k).max(1e-12));
+        let area = |b: &([f64; 3], [f64; 3])| side(b, kept[0]) * side(b, kept[1]);
+        let total: f64 = boxes.iter().map(area).sum();
+        let mut shared = 0.0;
+        for (n, p) in boxes.iter().enumerate() {
+            for q in &boxes[n + 1..] {
+                let len = |k: usize| (p.1[k].min(q.1[k]) - p.0[k].max(q.0[k])).max(0.0);
+                shared += len(kept[0]) * len(kept[1]);
+            }
+        }
+        shared / total.max(f64::MIN_POSITIVE)
+    };
+    let score: Vec<f64> = (0..3).map(overlap).collect();
+    let mut axes = [0usize, 1, 2];
+    axes.sort_by(|&a, &b| score[a].total_cmp(&score[b]).then(extent(a).total_cmp(&extent(b))));
+    axes
+}
+
+/// Widens the shorter of two ranges about its centre so that one unit spans as many pixels along
+/// x as along y on a plotting area of `px` pixels.
+fn equal_scale(
+    x: std::ops::Range<f64>,
+    y: std::ops::Range<f64>,
+    px: (u32, u32),
+) -> (std::ops::Range<f64>, std::ops::Range<f64>) {
+    let (w, h) = (px.0.max(1) as f64, px.1.max(1) as f64);
+    let (dx, dy) = (x.end - x.start, y.end - y.start);
+    // Units per pixel: the larger of the two keeps both ranges in view.
+    let u = (dx / w).max(dy / h);
+    let widen = |r: std::ops::Range<f64>, span: f64| {
+        let c = 0.5 * (r.start + r.end);
+        (c - 0.5 * span)..(c + 0.5 * span)
+    };
+    (widen(x, u * w), widen(y, u * h))
+}
+
+/// One view of [`plot_detections`], laid out alike on the picture and on the scratch canvas that
+/// measures its plotting area.
+type ViewChart<'a, DB> = ChartContext<
+    'a,
+    DB,
+    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+>;
+
+fn view_chart<'a, DB: DrawingBackend>(
+    area: &'a DrawingArea<DB, Shift>,
+    caption: &str,
+    x: std::ops::Range<f64>,
+    y: std::ops::Range<f64>,
+) -> std::result::Result<ViewChart<'a, DB>, DrawingAreaErrorKind<DB::ErrorType>> {
+    ChartBuilder::on(area)
+        .caption(caption, (FONT, 16).into_font())
+        .margin(10)
+        .x_label_area_size(32)
+        .y_label_area_size(50)
+        .build_cartesian_2d(x, y)
 }

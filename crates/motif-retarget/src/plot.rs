@@ -189,12 +189,19 @@ pub fn plot_offsets(analysis: &OffsetAnalysis, title: &str, path: &Path) -> Resu
     })
 }
 
-/// Colour of a dominant offset's circle: blue when it refined to a repetition, grey otherwise.
-fn dominant_colour(status: DominantStatus) -> RGBColor {
+/// Colour of a dominant offset's circle: blue when it refined to a repetition, grey otherwise;
+/// a darker grey for those that refined when the verdict is "no repetition", since nothing was
+/// kept then (blue circles suggested a structure the verdict denies).
+fn dominant_colour(analysis: &OffsetAnalysis, status: DominantStatus) -> RGBColor {
     match status {
+        DominantStatus::Accepted if no_repetition(analysis) => RGBColor(90, 90, 90),
         DominantStatus::Accepted => RGBColor(0, 90, 200),
         _ => RGBColor(140, 140, 140),
     }
+}
+
+fn no_repetition(analysis: &OffsetAnalysis) -> bool {
+    analysis.repetition.kind == crate::offsets::Repetition::NoRepetition
 }
 
 /// The dominant offsets' rings, at `at(d, ±1)` (both signs: `v` and `−v` are one repetition),
@@ -207,7 +214,7 @@ fn peak_marks(
     let mut rings = Vec::new();
     let mut labels = Vec::new();
     for (k, d) in analysis.dominant.iter().enumerate() {
-        let colour = dominant_colour(d.status);
+        let colour = dominant_colour(analysis, d.status);
         for s in [1.0, -1.0] {
             rings.push(Circle::new(at(d, s), 9, colour.stroke_width(2)));
         }
@@ -505,7 +512,22 @@ fn draw_projection(
         };
         let overlaps =
             |r: &[f64; 4]| placed.iter().any(|q| r[0] < q[2] && q[0] < r[2] && r[1] < q[3] && q[1] < r[3]);
-        let spots = [(0.5, 1.0), (0.75, 1.0), (0.5, -1.0), (0.75, -1.0), (0.25, 1.0), (0.25, -1.0)];
+        // Beside the shaft first; beyond the head only when a short arrow leaves no room there
+        // (the stadium's p1, a quarter of p0's label long, covered that label).
+        let spots = [
+            (0.5, 1.0),
+            (0.75, 1.0),
+            (0.5, -1.0),
+            (0.75, -1.0),
+            (0.25, 1.0),
+            (0.25, -1.0),
+            (1.0, 1.0),
+            (1.0, -1.0),
+            (1.4, 1.0),
+            (1.4, -1.0),
+            (1.8, 1.0),
+            (1.8, -1.0),
+        ];
         let chosen = spots
             .iter()
             .map(|&(t, side)| candidate(t, side))
@@ -574,8 +596,18 @@ fn draw_bars(
     let numbered = principal_numbering(analysis);
     for (k, d) in analysis.dominant.iter().enumerate() {
         let principal = numbered.iter().find(|&&(_, j)| analysis.principal[j].dominant == k).map(|&(i, _)| i);
+        // The peak a principal offset was selected on, when the period reduction replaced it by
+        // its generator (p = peak / multiple): labelled as that multiple of p.
+        let multiple_of = numbered
+            .iter()
+            .find(|&&(_, j)| {
+                let q = &analysis.principal[j];
+                q.selected == k && q.dominant != k && q.multiple > 1
+            })
+            .map(|&(i, j)| (i, analysis.principal[j].multiple));
         let colour = match (principal, d.status) {
             (Some(p), _) => principal_colour(analysis, p),
+            (None, DominantStatus::Accepted) if no_repetition(analysis) => RGBColor(170, 170, 170),
             (None, DominantStatus::Accepted) => RGBColor(150, 180, 220),
             _ => RGBColor(200, 200, 200),
         };
@@ -585,7 +617,17 @@ fn draw_bars(
             .draw_series(std::iter::once(Rectangle::new([(x - 0.38, 0.0), (x + 0.38, y)], colour.filled())))
             .map_err(|e| plot_err(path, e))?;
         let label = match (principal, d.status) {
-            (Some(p), _) => format!("p{p}"),
+            // A pitch below τ is the peak divided: the peak is that many pitches long.
+            (Some(p), _) => {
+                match numbered.iter().find(|&&(i, _)| i == p).map(|&(_, j)| analysis.principal[j].divisor) {
+                    Some(n) if n > 1 => format!("{n}·p{p}"),
+                    _ => format!("p{p}"),
+                }
+            }
+            (None, _) if multiple_of.is_some() => {
+                let (p, m) = multiple_of.unwrap_or_default();
+                format!("{m}·p{p}")
+            }
             (None, DominantStatus::Accepted) => String::new(),
             (None, DominantStatus::Collapsed) => "col".into(),
             (None, DominantStatus::Drifted) => "dri".into(),
@@ -598,9 +640,10 @@ fn draw_bars(
                 .draw_series(std::iter::once(Text::new(
                     label,
                     (x - 0.35, y + 0.035 * max),
-                    (FONT, 13).into_font().color(&match principal {
-                        Some(_) => colour,
-                        None => RGBColor(90, 90, 90),
+                    (FONT, 13).into_font().color(&match (principal, multiple_of) {
+                        (Some(_), _) => colour,
+                        (None, Some((p, _))) => principal_colour(analysis, p),
+                        (None, None) => RGBColor(90, 90, 90),
                     }),
                 )))
                 .map_err(|e| plot_err(path, e))?;
@@ -658,10 +701,11 @@ fn draw_text(
             100.0 * p.support as f64 / total
         );
         if p.multiple > 1 {
-            s += &format!("  ({} × the peak's offset)", p.multiple);
+            // The greedy selection chose peak `selected`; its generator, peak `dominant`, is p.
+            s += &format!("  (peak #{} / {}, at peak #{})", p.selected, p.multiple, p.dominant);
         }
         if p.divisor > 1 {
-            s += &format!("  (the peak's offset / {}: that is within τ)", p.divisor);
+            s += &format!("  (peak #{} / {}: a pitch shorter than τ)", p.dominant, p.divisor);
         }
         lines.push((s, 14, principal_colour(analysis, i)));
         let mut detail = format!(
@@ -669,10 +713,18 @@ fn draw_text(
             100.0 * p.overlap,
             100.0 * p.contrast
         );
+        // A rejected model's verdict already says why (continuous symmetry or partial match).
+        // The contrast compares v with v / 2 and 3v / 2 (see `refine`).
+        let finer = (p.contrast < 0.0 && !no_repetition(analysis)).then_some(
+            "      (half or 1.5× of it maps more edges and corners: a finer pattern inside the period)",
+        );
         if p.length_model * analysis.normalisation.scale < analysis.bin_size {
             detail += " (shorter than a bin: a dot at the centre)";
         }
         lines.push((detail, 13, grey));
+        if let Some(f) = finer {
+            lines.push((f.into(), 13, grey));
+        }
     }
     if analysis.principal.is_empty() {
         lines.push(("no principal offset".into(), 14, BLACK));
@@ -687,7 +739,12 @@ fn draw_text(
         ));
     }
     lines.push((
-        "How to read it: heat = offsets per bin (log scale); circles = histogram peaks, blue: kept;".into(),
+        if no_repetition(analysis) {
+            "How to read it: heat = offsets per bin (log scale); circles = histogram peaks, dark: none kept;"
+        } else {
+            "How to read it: heat = offsets per bin (log scale); circles = histogram peaks, blue: kept;"
+        }
+        .into(),
         13,
         grey,
     ));
