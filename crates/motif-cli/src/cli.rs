@@ -115,9 +115,13 @@ pub struct JsonArg {
 
 /// A path for a `--json` report: not a model or picture file (as [`json_path`]), and not an
 /// existing file that holds one of the documents Motif reads (a detection result or ground
-/// truth, a symmetry annotation, handles, an MRF problem): `motif eval --json r.json g.json
-/// r2.json` took the result `r.json` as the report's file and overwrote it. `--json` takes an
-/// optional value, so the messages say how it can take an input by mistake.
+/// truth, a symmetry annotation, handles, an MRF problem, a data-set manifest): `motif eval
+/// --json r.json g.json r2.json` took the result `r.json` as the report's file and overwrote
+/// it. `--json` takes an optional value, so the messages say how it can take an input by
+/// mistake. `--force` lifts the second check, as it lets any output replace a file.
+///
+/// Only a regular file is looked into: reading a pipe, a FIFO or a terminal given as the report's
+/// path (`--json /dev/stdout | cat`) waited forever for input.
 pub fn json_report_path(value: &str) -> Result<PathBuf, String> {
     const HINT: &str = "did --json take an input file as its value? put --json after the inputs, or write \
                         --json=REPORT.json";
@@ -128,8 +132,13 @@ pub fn json_report_path(value: &str) -> Result<PathBuf, String> {
         ));
     }
     let path = PathBuf::from(value);
+    // A value parser sees no other flag; `--force` is looked up among the arguments themselves.
+    let forced = std::env::args_os().any(|a| a == "--force");
     let mut head = Vec::new();
-    if let Ok(f) = std::fs::File::open(&path) {
+    if !forced
+        && std::fs::metadata(&path).is_ok_and(|m| m.is_file())
+        && let Ok(f) = std::fs::File::open(&path)
+    {
         use std::io::Read;
         let _ = f.take(1 << 16).read_to_end(&mut head);
     }
@@ -143,13 +152,31 @@ pub fn json_report_path(value: &str) -> Result<PathBuf, String> {
         Some("an annotation, handles or MRF problem")
     } else if first_key("\"scene\"") && text.contains("\"classes\"") {
         Some("a detection result or ground truth")
+    } else if is_manifest(&text) {
+        Some("a data-set manifest (a list of files, as `motif sparsity` reads)")
     } else {
         None
     };
     match kind {
-        Some(kind) => Err(format!("{value} holds {kind}, which a report would overwrite ({HINT})")),
+        Some(kind) => {
+            Err(format!("{value} holds {kind}, which a report would overwrite ({HINT}; or pass --force)"))
+        }
         None => Ok(path),
     }
+}
+
+/// Whether JSON text (possibly cut) is a data-set manifest, `{"files": [{"path": ...}, ...]}`
+/// as `../shared/data/MANIFEST.json`: a top-level `"files"` key whose value opens a list of
+/// objects with a `"path"`.
+fn is_manifest(text: &str) -> bool {
+    let Some(at) = text.find("\"files\"") else { return false };
+    let rest = text[at + "\"files\"".len()..].trim_start();
+    let opens_list_of_objects = rest
+        .strip_prefix(':')
+        .map(str::trim_start)
+        .and_then(|r| r.strip_prefix('['))
+        .is_some_and(|r| r.trim_start().starts_with('{'));
+    text.trim_start().starts_with('{') && opens_list_of_objects && rest.contains("\"path\"")
 }
 
 /// A path a JSON document (a result, an annotation) is written to with `-o`: refused when its

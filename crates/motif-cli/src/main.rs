@@ -3,6 +3,26 @@
 //! A thin front end: it parses arguments, calls the library crates, prints results, and maps
 //! errors to exit codes (0 success, 1 failure, 2 bad usage or bad input).
 
+/// `eprintln!` for this crate: std's panics when stderr cannot be written (`2>/dev/full`: the
+/// retargeted model was written, then a warning took the process down with exit 101). A warning
+/// or note that cannot be shown is dropped; the work and its exit status go on. Defined before
+/// the modules, so it shadows std's in all of them.
+macro_rules! eprintln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($arg)*);
+    }};
+}
+
+/// `eprint!` likewise (see `eprintln!`).
+#[allow(unused_macros)]
+macro_rules! eprint {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = write!(std::io::stderr(), $($arg)*);
+    }};
+}
+
 mod cli;
 mod commands;
 mod output;
@@ -32,6 +52,10 @@ fn quiet_on_broken_pipe() {
         // exit 1, not a panic with a backtrace.
         if let Some(reason) = text.strip_prefix("failed printing to stdout: ") {
             eprintln!("error: writing to standard output failed: {reason}");
+            std::process::exit(1);
+        }
+        // A dependency printing to a stderr that cannot be written: nothing can be said.
+        if text.starts_with("failed printing to stderr") {
             std::process::exit(1);
         }
         default(info);
@@ -159,9 +183,24 @@ fn main() -> ExitCode {
         // A second initialisation can only fail if something already built the pool; ignore.
         let _ = rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build_global();
     }
-    match commands::run(cli) {
+    // A command's outputs are replaced together when it succeeds, and none when it fails
+    // (`motif_core::io::defer_renames`). Not for the commands that read back what they wrote
+    // (the benchmarks' scenes, the demo's walk through its files) or keep running (the studio).
+    let defer =
+        !matches!(cli.command, cli::Command::Bench(_) | cli::Command::Demo(_) | cli::Command::Studio(_));
+    if defer {
+        motif_core::io::defer_renames();
+    }
+    let result = commands::run(cli).and_then(|()| {
+        if defer {
+            motif_core::io::commit_deferred()?;
+        }
+        Ok(())
+    });
+    match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
+            motif_core::io::discard_deferred();
             eprintln!("error: {}", output::describe(&err));
             ExitCode::from(output::exit_code(&err))
         }

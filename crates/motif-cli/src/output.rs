@@ -332,7 +332,19 @@ fn io_exit_code(e: &std::io::Error) -> u8 {
 /// `force`; and no two outputs may be the same file, even with `force` (one would silently
 /// replace the other). Outputs that merely exist are replaced, as `cp` does. `None` (an output
 /// not asked for) and `-` (a report on stdout) are skipped.
+///
+/// Also refused before the work: two outputs on stdout (`-o - --json`: two JSON documents back
+/// to back, which no reader can parse), and an output whose folder refuses a file (permissions,
+/// a name too long once the temporary file's suffix is added, `/proc`): this was found only
+/// when the result was written, after the whole computation.
 pub fn check_outputs(outputs: &[Option<&Path>], inputs: &[&Path], force: bool) -> anyhow::Result<()> {
+    let on_stdout = outputs.iter().flatten().filter(|o| **o == Path::new("-")).count();
+    if on_stdout > 1 {
+        return Err(bad_input(format!(
+            "{on_stdout} outputs are given as - (standard output), which would print them one after \
+             the other as one stream no reader can split: give all but one of them a file"
+        )));
+    }
     let mut seen: Vec<(PathBuf, &Path)> = Vec::new();
     for output in outputs.iter().flatten().copied() {
         if output == Path::new("-") {
@@ -357,6 +369,9 @@ pub fn check_outputs(outputs: &[Option<&Path>], inputs: &[&Path], force: bool) -
             )));
         }
         seen.push((resolved, output));
+    }
+    for output in outputs.iter().flatten().copied().filter(|o| *o != Path::new("-")) {
+        motif_core::io::check_writable(output)?;
     }
     Ok(())
 }

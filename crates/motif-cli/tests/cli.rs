@@ -1669,6 +1669,66 @@ fn a_json_flag_that_takes_an_input_as_its_value_is_refused_and_nothing_is_overwr
         let o = motif(&["eval", "r.json", "g.json", "--json", "ev.json"], d.path());
         assert!(o.status.success(), "{}", stderr(&o));
     }
+    // --force lets a report replace such a file, as it lets any output replace one.
+    let o = motif(&["eval", "g.json", "r.json", "--json", "r.json", "--force"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(std::fs::read_to_string(d.path().join("r.json")).unwrap().contains("\"precision\""));
+    // A data-set manifest (what `motif sparsity` reads) is refused as a report's file.
+    std::fs::create_dir(d.path().join("man-made")).unwrap();
+    std::fs::copy(d.path().join("a.obj"), d.path().join("man-made/a.obj")).unwrap();
+    let manifest = r#"{"description": "two", "files": [{"path": "man-made/a.obj", "category": "man-made"}]}"#;
+    std::fs::write(d.path().join("m.json"), manifest).unwrap();
+    let o = motif(&["sparsity", "man-made", "--json", "m.json"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("holds a data-set manifest"), "{}", stderr(&o));
+    assert_eq!(std::fs::read_to_string(d.path().join("m.json")).unwrap(), manifest);
+}
+
+/// `--json PATH` looked into PATH to refuse inputs as reports' files, and waited forever when
+/// PATH was a FIFO or a pipe (`--json /dev/stdout | cat`): only regular files are looked into.
+#[cfg(unix)]
+#[test]
+fn a_report_to_a_fifo_is_written_not_read() {
+    let d = tmp();
+    let o = motif(&["mrf", "generate", "--dims", "3,3,3", "--labels", "2", "-o", "p.json"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let fifo = d.path().join("report.fifo");
+    assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    // A reader drains the FIFO, as `| cat` would; without it the writer could not finish either.
+    let reader = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || std::fs::read_to_string(fifo).unwrap())
+    };
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_motif"))
+        .args(["-q", "mrf", "solve", "p.json", "--json"])
+        .arg(&fifo)
+        .current_dir(d.path())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // A bounded wait, so that a regression fails instead of hanging the test run.
+    let started = std::time::Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break Some(s);
+        }
+        if started.elapsed() > std::time::Duration::from_secs(60) {
+            let _ = child.kill();
+            // Unblock the reader, which waits for a writer.
+            let _ = std::fs::write(&fifo, b"");
+            break None;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    };
+    let report = reader.join().unwrap();
+    let status = status.expect("motif waited on the FIFO given to --json");
+    assert!(status.success());
+    assert!(report.contains("\"energy\""), "{report}");
+    // `/dev/stdout` on a pipe (as the test captures it) links to `pipe:[N]`, which names no file.
+    let o = motif(&["-q", "mrf", "solve", "p.json", "--json", "/dev/stdout"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("\"energy\""), "{}", stdout(&o));
 }
 
 #[test]
@@ -2042,4 +2102,41 @@ fn symmetry_detect_draws_its_elements() {
     let png = std::fs::read(dir.join("c.png")).unwrap();
     assert!(png.starts_with(b"\x89PNG") && png.len() > 10_000, "{} bytes", png.len());
     assert_no_stray_files(dir);
+}
+
+/// A command whose last output fails leaves none of its outputs: the retargeted model was
+/// complete on disk when its report failed to write (a full disk, here `/dev/full`). Outputs are
+/// also checked before the work: a folder that refuses files and two outputs on stdout.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_failed_command_leaves_no_output_and_bad_outputs_are_refused_first() {
+    let d = tmp();
+    assert!(motif(&["example", "shelf", "s.obj"], d.path()).status.success());
+    let o =
+        motif(&["-q", "retarget", "s.obj", "--steps", "1", "-o", "r.obj", "--json", "/dev/full"], d.path());
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("/dev/full: no space left on device"), "{}", stderr(&o));
+    let left: Vec<String> = std::fs::read_dir(d.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n != "s.obj")
+        .collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
+    // The same command with a report that can be written leaves both.
+    let o = motif(&["-q", "retarget", "s.obj", "--steps", "1", "-o", "r.obj", "--json", "r.json"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(d.path().join("r.obj").is_file() && d.path().join("r.json").is_file());
+    // A name too long once the temporary file's suffix is added fails before the work.
+    let long = format!("{}.json", "a".repeat(249));
+    let o = motif(&["-q", "offsets", "s.obj", "--json", &long], d.path());
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("the name is too long once the temporary file"), "{}", stderr(&o));
+    assert!(!stdout(&o).contains("principal"), "the analysis ran first: {}", stdout(&o));
+    // Two outputs on stdout.
+    let o = motif(&["example", "scene-facade", "f.ply", "--gt", "g.json", "--points", "3000"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = motif(&["-q", "detect", "f.ply", "-o", "-", "--json"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("2 outputs are given as - (standard output)"), "{}", stderr(&o));
+    assert!(stdout(&o).is_empty(), "{}", stdout(&o));
 }

@@ -22,11 +22,14 @@ use crate::{Error, Result};
 ///
 /// Used by every mesh writer and by other writers of the project (CSV, JSON).
 pub fn write_atomic(path: &Path, f: impl FnOnce(&mut dyn Write) -> io::Result<()>) -> Result<()> {
-    let resolved = follow_links(path);
-    let path = resolved.as_path();
+    // What the path ends at as the kernel follows it: `/dev/stdout` on a pipe is a link to
+    // `/proc/self/fd/1`, whose link text `pipe:[N]` names no file, so following the links by
+    // hand reached nothing (a report given `--json /dev/stdout | cat` failed with "no such file").
     if fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir()) {
         return write_through(path, f);
     }
+    let resolved = follow_links(path);
+    let path = resolved.as_path();
     let name = path.file_name().ok_or_else(|| {
         Error::io(path, io::Error::new(io::ErrorKind::InvalidInput, "the path names no file"))
     })?;
@@ -34,7 +37,8 @@ pub fn write_atomic(path: &Path, f: impl FnOnce(&mut dyn Write) -> io::Result<()
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };
-    let (file, guard) = create_temp(dir, &name.to_string_lossy()).map_err(|e| Error::io(path, e))?;
+    let (file, guard) =
+        create_temp(dir, &name.to_string_lossy()).map_err(|e| Error::io(path, temp_error(dir, e)))?;
     // A file that is replaced keeps its permissions (a private 600 output stayed 600 with
     // `cp`, and became 644 here).
     if let Some(meta) = fs::metadata(path).ok().filter(|m| m.is_file()) {
@@ -52,12 +56,21 @@ pub fn write_atomic(path: &Path, f: impl FnOnce(&mut dyn Write) -> io::Result<()
         if !live.contains(&guard.path) {
             return Err(io::Error::new(io::ErrorKind::Interrupted, "interrupted"));
         }
+        if DEFERRING.load(Ordering::SeqCst) {
+            // Renamed by `commit_deferred` once every output is written.
+            return Ok(true);
+        }
         let renamed = fs::rename(&guard.path, path);
         drop(live);
-        renamed
+        renamed.map(|()| false)
     })();
     match result {
-        Ok(()) => {
+        Ok(true) => {
+            let temp = guard.keep();
+            DEFERRED.lock().unwrap_or_else(|e| e.into_inner()).push((temp, path.to_path_buf()));
+            Ok(())
+        }
+        Ok(false) => {
             guard.disarm();
             sync_dir(dir);
             Ok(())
@@ -103,6 +116,102 @@ impl TempGuard {
         self.armed = false;
         forget_temp(&self.path);
     }
+
+    /// Keeps the temporary file, still registered for removal on an interrupt.
+    fn keep(mut self) -> PathBuf {
+        self.armed = false;
+        std::mem::take(&mut self.path)
+    }
+}
+
+/// Whether [`write_atomic`] defers its renames (see [`defer_renames`]).
+static DEFERRING: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// The deferred writes: each complete, fsynced temporary file and the target it replaces.
+static DEFERRED: std::sync::Mutex<Vec<(PathBuf, PathBuf)>> = std::sync::Mutex::new(Vec::new());
+
+/// From now on, [`write_atomic`] leaves each complete temporary file in place, and
+/// [`commit_deferred`] renames them all over their targets at the end; [`discard_deferred`]
+/// removes them instead. For a command with several outputs (a detection result, its labelled
+/// points, a picture, a report): when the last one fails (a full disk, a folder that refuses
+/// it), no output is left behind, as no output of the run is replaced until all are written.
+/// Devices and pipes are written at once, as before. A program that reads back what it
+/// wrote must not defer.
+pub fn defer_renames() {
+    DEFERRING.store(true, Ordering::SeqCst);
+}
+
+/// Renames every deferred write over its target, in the order they were written, and stops
+/// deferring. On the first failure the remaining temporary files are removed and that error is
+/// returned (the targets renamed before it stay replaced: a rename within one folder fails only
+/// when the folder itself changed meanwhile).
+pub fn commit_deferred() -> Result<()> {
+    DEFERRING.store(false, Ordering::SeqCst);
+    let pending = std::mem::take(&mut *DEFERRED.lock().unwrap_or_else(|e| e.into_inner()));
+    let mut failure = None;
+    for (temp, target) in pending {
+        if failure.is_some() {
+            let _ = fs::remove_file(&temp);
+            forget_temp(&temp);
+            continue;
+        }
+        // Under the registry's lock, as in `write_atomic`.
+        let live = LIVE_TEMPS.lock().unwrap_or_else(|e| e.into_inner());
+        let renamed = if live.contains(&temp) {
+            fs::rename(&temp, &target)
+        } else {
+            Err(io::Error::new(io::ErrorKind::Interrupted, "interrupted"))
+        };
+        drop(live);
+        forget_temp(&temp);
+        match renamed {
+            Ok(()) => {
+                sync_dir(target.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new(".")))
+            }
+            Err(e) => {
+                let _ = fs::remove_file(&temp);
+                failure = Some(Error::io(&target, e));
+            }
+        }
+    }
+    failure.map_or(Ok(()), Err)
+}
+
+/// Removes every deferred write's temporary file (the targets stay as they were) and stops
+/// deferring: for a command that failed after some of its outputs were written.
+pub fn discard_deferred() {
+    DEFERRING.store(false, Ordering::SeqCst);
+    let pending = std::mem::take(&mut *DEFERRED.lock().unwrap_or_else(|e| e.into_inner()));
+    for (temp, _) in pending {
+        let _ = fs::remove_file(&temp);
+        forget_temp(&temp);
+    }
+}
+
+/// Checks that `path` can be written as [`write_atomic`] writes it, by creating and removing
+/// its temporary file: a folder that refuses files, a name too long once the temporary file's
+/// `.NAME.PID.N.tmp` is added, a path in `/proc`. Devices, pipes and links to them are not
+/// touched. For a command's outputs before it starts its work, so that a long computation does
+/// not end in "permission denied".
+pub fn check_writable(path: &Path) -> Result<()> {
+    if fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir()) {
+        return Ok(());
+    }
+    let resolved = follow_links(path);
+    let target = resolved.as_path();
+    let name = target.file_name().ok_or_else(|| {
+        Error::io(path, io::Error::new(io::ErrorKind::InvalidInput, "the path names no file"))
+    })?;
+    let dir = match target.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let (file, guard) =
+        create_temp(dir, &name.to_string_lossy()).map_err(|e| Error::io(path, temp_error(dir, e)))?;
+    drop(file);
+    // The guard removes the file.
+    drop(guard);
+    Ok(())
 }
 
 impl Drop for TempGuard {
@@ -157,6 +266,18 @@ fn create_temp(dir: &Path, name: &str) -> io::Result<(File, TempGuard)> {
             Err(e) => return Err(e),
         }
     }
+}
+
+/// The error of creating the temporary file in `dir`, said as such: the OS's own words named the
+/// target (`/proc/version: no such file or directory`, of a file that exists).
+fn temp_error(dir: &Path, e: io::Error) -> io::Error {
+    let why = match e.kind() {
+        io::ErrorKind::InvalidFilename => {
+            "the name is too long once the temporary file's `.NAME.PID.N.tmp` is added".to_string()
+        }
+        _ => e.to_string(),
+    };
+    io::Error::new(e.kind(), format!("cannot create a file in the folder {}: {why}", dir.display()))
 }
 
 /// Makes a rename in `dir` durable. Best effort: not every platform can open a directory.

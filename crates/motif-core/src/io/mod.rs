@@ -39,7 +39,10 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-pub use atomic::{remove_temporary_files_and, write_atomic};
+pub use atomic::{
+    check_writable, commit_deferred, defer_renames, discard_deferred, remove_temporary_files_and,
+    write_atomic,
+};
 pub use image::write_png_rgb;
 
 use crate::error::Position;
