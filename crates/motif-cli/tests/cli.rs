@@ -855,6 +855,25 @@ fn retarget_adds_shelf_cells_and_refuses_models_without_repetition() {
     ));
     assert_eq!(r["steps"], serde_json::json!([2, 0, 0]));
     assert_eq!(r["request"]["target_size"], serde_json::json!([2.5, null, null]));
+    // On a sheared grid a step along the slanted offset also widens the model: the steps are
+    // chosen for the whole size asked ('-' keeps the height), not offset by offset (which gave
+    // +2,+1 here, 1.5 high instead of 1.13).
+    assert!(motif(&["example", "shelf_sheared", "ss.obj"], d.path()).status.success());
+    let r =
+        json_of(&motif(&["retarget", "ss.obj", "--target-size", "3,-,-", "-o", "t.obj", "--json"], d.path()));
+    assert_eq!(r["steps"], serde_json::json!([2, 0, 0]), "{}", r["output_size"]);
+    let (asked, got) = (serde_json::json!([3.0, null, null]), &r["output_size"]);
+    assert_eq!(r["request"]["target_size"], asked);
+    assert!(
+        (got[0].as_f64().unwrap() - 3.0).abs() < 0.21 && (got[1].as_f64().unwrap() - 1.13).abs() < 1e-6,
+        "{got}"
+    );
+    // Both axes asked: the closest whole-step size of the two, not the closest of each alone.
+    let r = json_of(&motif(
+        &["retarget", "ss.obj", "--target-size", "2.5,1.5,-", "-o", "t.obj", "--json"],
+        d.path(),
+    ));
+    assert_eq!(r["steps"], serde_json::json!([0, 1, 0]), "{}", r["output_size"]);
     // Dense baseline: many more nodes and labels.
     let r = json_of(&motif(
         &["retarget", "shelf.obj", "--steps", "1,1", "--method", "dense", "-o", "dense.obj", "--json"],

@@ -293,6 +293,11 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             a.mesh.display()
         );
         let (true, Some(size)) = (a.plain_resize, target) else {
+            if a.plain_resize {
+                return Err(bad_input(format!(
+                    "{evidence}; --plain-resize scales to a size: give it with --target-size X,Y,Z (steps count cells, which a plain resize has none of)"
+                )));
+            }
             return Err(bad_input(format!(
                 "{evidence}; pass --plain-resize with --target-size to scale it instead, or --offsets X,Y,Z to retarget along a pitch you know"
             )));
@@ -402,6 +407,12 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 }
                 s[k] = steps as i32;
             }
+            // The estimate above treats each offset alone; on a sheared grid a step along one
+            // offset also widens the box along another axis (`--target-size 3,-,-` on the sheared
+            // shelf chose +2,+1 and made it 1.5 high instead of keeping 1.13). One step along `o`
+            // grows the box by |o| per axis, so the whole steps near the estimate are scored by
+            // the distance of the size they give to the size asked ('-' asks for the model's own).
+            s = nearest_steps(&principal, model_size, size, s);
             // An axis that no offset reaches (no offset has 5% of its length along it) keeps
             // its size: asking for another one there is refused, as --steps along a direction
             // without an offset is, instead of being ignored. Axes an offset reaches come as
@@ -611,4 +622,44 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         total_ms: ms_since(t0),
     };
     maybe_json(&a.json.json, &report)
+}
+
+/// The whole steps within 3 of `start` along each of `principal` whose predicted box size,
+/// `model_size + Σₖ sₖ |oₖ|` per axis, is closest to `size` (Euclidean, model units); ties go to
+/// fewer steps in all, then to the lexicographically smaller step vector, so the choice is
+/// deterministic.
+fn nearest_steps(principal: &[[f64; 3]], model_size: [f64; 3], size: [f64; 3], start: [i32; 3]) -> [i32; 3] {
+    let m = principal.len().min(3);
+    let predicted = |s: [i32; 3]| {
+        let mut out = model_size;
+        for (k, o) in principal.iter().take(m).enumerate() {
+            for i in 0..3 {
+                out[i] += s[k] as f64 * o[i].abs();
+            }
+        }
+        out
+    };
+    let error = |s: [i32; 3]| {
+        let p = predicted(s);
+        (0..3).map(|i| (p[i] - size[i]).powi(2)).sum::<f64>()
+    };
+    let range =
+        |k: usize| if k < m { start[k].saturating_sub(3)..=start[k].saturating_add(3) } else { 0..=0 };
+    let mut best = start;
+    let mut best_key = (error(start), start.iter().map(|x| x.unsigned_abs()).sum::<u32>(), start);
+    for a in range(0) {
+        for b in range(1) {
+            for c in range(2) {
+                let s = [a, b, c];
+                let key = (error(s), s.iter().map(|x| x.unsigned_abs()).sum::<u32>(), s);
+                if key.0 < best_key.0 - 1e-12
+                    || ((key.0 - best_key.0).abs() <= 1e-12 && (key.1, key.2) < (best_key.1, best_key.2))
+                {
+                    best = s;
+                    best_key = key;
+                }
+            }
+        }
+    }
+    best
 }

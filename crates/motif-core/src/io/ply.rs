@@ -161,6 +161,12 @@ trait Body {
     fn skip(&mut self, ty: Ty, n: u64) -> Result<(), ReadErr>;
     /// Where the next value starts.
     fn position(&self) -> Position;
+    /// A record (one vertex, one face) starts: an ASCII record is one line.
+    fn begin_record(&mut self) {}
+    /// The record's values are read: an ASCII line must hold no more.
+    fn end_record(&mut self) -> Result<(), ReadErr> {
+        Ok(())
+    }
 }
 
 struct Binary<'a> {
@@ -220,10 +226,16 @@ impl Body for Binary<'_> {
     }
 }
 
+/// An ASCII body, read record by record, each record one line (the PLY format's rule): a value
+/// too many or too few on one line is an error on that line. Read as a plain stream of numbers,
+/// one extra value silently shifted every point after it, and a missing one was reported far
+/// down the file, where the counts finally ran out.
 struct Ascii<'a> {
     bytes: &'a [u8],
     pos: usize,
     line: usize,
+    /// The line of the record being read.
+    record_line: Option<usize>,
 }
 
 impl<'a> Ascii<'a> {
@@ -242,6 +254,13 @@ impl<'a> Ascii<'a> {
         }
         if start == self.pos {
             return Err(ReadErr::Eof(Position::Line(self.line)));
+        }
+        if let Some(line) = self.record_line.filter(|&l| l != self.line) {
+            return Err(ReadErr::Bad(
+                Position::Line(line),
+                "the line ends before the record does: fewer values than the header's properties declare"
+                    .into(),
+            ));
         }
         Ok((&b[start..self.pos], Position::Line(self.line)))
     }
@@ -281,6 +300,33 @@ impl Body for Ascii<'_> {
         Ok(())
     }
 
+    fn begin_record(&mut self) {
+        let b = self.bytes;
+        while self.pos < b.len() && b[self.pos].is_ascii_whitespace() {
+            if b[self.pos] == b'\n' {
+                self.line += 1;
+            }
+            self.pos += 1;
+        }
+        self.record_line = Some(self.line);
+    }
+
+    fn end_record(&mut self) -> Result<(), ReadErr> {
+        self.record_line = None;
+        let b = self.bytes;
+        let mut p = self.pos;
+        while p < b.len() && matches!(b[p], b' ' | b'\t' | b'\r' | b'\x0b' | b'\x0c') {
+            p += 1;
+        }
+        if p < b.len() && b[p] != b'\n' {
+            return Err(ReadErr::Bad(
+                Position::Line(self.line),
+                "more values on the line than the header's properties declare".into(),
+            ));
+        }
+        Ok(())
+    }
+
     fn position(&self) -> Position {
         // The next token may start on a later line; the current one is close enough for errors.
         let mut line = self.line;
@@ -301,7 +347,7 @@ pub(super) fn read(bytes: &[u8], path: &Path) -> Result<Model> {
         PlyEncoding::Ascii => {
             // Line numbers go on counting from the header.
             let line = bytes[..header.body_start].iter().filter(|&&b| b == b'\n').count() + 1;
-            let mut body = Ascii { bytes, pos: header.body_start, line };
+            let mut body = Ascii { bytes, pos: header.body_start, line, record_line: None };
             read_body(&header, &mut body, bytes.len() - header.body_start, path)
         }
         PlyEncoding::BinaryLittleEndian | PlyEncoding::BinaryBigEndian => {
@@ -474,9 +520,11 @@ fn read_body(header: &Header, body: &mut dyn Body, body_len: usize, path: &Path)
             "tristrips" => read_faces(e, body, nv, path, &mut warnings, true, &mut faces)?,
             _ => {
                 for r in 0..e.count {
+                    body.begin_record();
                     for p in &e.props {
                         skip_property(body, p).map_err(|err| context(path, err, e, r))?;
                     }
+                    body.end_record().map_err(|err| context(path, err, e, r))?;
                 }
             }
         }
@@ -580,6 +628,7 @@ fn read_vertices(
     let mut colors = color.map(|_| Vec::with_capacity(n));
     let mut bad_normals = 0usize;
     for r in 0..e.count {
+        body.begin_record();
         let start = body.position();
         let (mut p, mut nr, mut c) = ([0.0; 3], [0.0; 3], [0u8; 3]);
         for (prop, &role) in e.props.iter().zip(&roles) {
@@ -600,6 +649,7 @@ fn read_vertices(
                 Role::Skip => {}
             }
         }
+        body.end_record().map_err(|err| context(path, err, e, r))?;
         if !is_finite(p) {
             return Err(perr(path, start, format!("vertex {r} has a NaN or infinite coordinate {p:?}")));
         }
@@ -649,9 +699,11 @@ fn read_faces(
     let Some(list) = list else {
         warnings.push(format!("ignored the {} element: it has no vertex_indices list", e.name));
         for r in 0..e.count {
+            body.begin_record();
             for p in &e.props {
                 skip_property(body, p).map_err(|err| context(path, err, e, r))?;
             }
+            body.end_record().map_err(|err| context(path, err, e, r))?;
         }
         return Ok(());
     };
@@ -667,6 +719,7 @@ fn read_faces(
     faces.triangles.reserve(e.count as usize);
     let mut polygon: Vec<u32> = Vec::with_capacity(8);
     for r in 0..e.count {
+        body.begin_record();
         let start = body.position();
         for (i, p) in e.props.iter().enumerate() {
             let Kind::List(ct, it) = p.kind else {
@@ -698,6 +751,7 @@ fn read_faces(
                 }
             }
         }
+        body.end_record().map_err(|err| context(path, err, e, r))?;
         if strips {
             faces.add_strip(&polygon, || start);
         } else {
@@ -915,6 +969,32 @@ mod tests {
         let m = parse(&b).unwrap();
         assert_eq!(m.vertices.positions[2], [0.0, 1.0, -1.0]);
         assert_eq!(m.triangles, vec![[0, 1, 2]]);
+    }
+
+    #[test]
+    fn an_ascii_record_is_one_line() {
+        let head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+                    property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
+        let good = format!("{head}0 0 0\n1 0 0\r\n0 1 0   \n3 0 1 2\n");
+        assert_eq!(parse(good.as_bytes()).unwrap().triangles.len(), 1);
+        // One value too many on line 11 (the second vertex): said there, not read as the next
+        // vertex's x.
+        let extra = format!("{head}0 0 0\n1 0 0 0.25\n0 1 0\n3 0 1 2\n");
+        let e = parse(extra.as_bytes()).unwrap_err();
+        assert_eq!(pos_of(e), Position::Line(11));
+        let e = parse(extra.as_bytes()).unwrap_err().to_string();
+        assert!(e.contains("more values on the line") && e.contains("record 1 of element \"vertex\""), "{e}");
+        // One too few: said on the record's line, not where the counts run out.
+        let short = format!("{head}0 0 0\n1 0\n0 1 0\n3 0 1 2\n");
+        assert_eq!(pos_of(parse(short.as_bytes()).unwrap_err()), Position::Line(11));
+        let e = parse(short.as_bytes()).unwrap_err().to_string();
+        assert!(e.contains("fewer values than the header's properties declare"), "{e}");
+        // A face with an index too many.
+        let face = format!("{head}0 0 0\n1 0 0\n0 1 0\n3 0 1 2 2\n");
+        assert_eq!(pos_of(parse(face.as_bytes()).unwrap_err()), Position::Line(13));
+        // The last record may end the file without a newline.
+        let last = format!("{head}0 0 0\n1 0 0\n0 1 0\n3 0 1 2");
+        assert_eq!(parse(last.as_bytes()).unwrap().triangles.len(), 1);
     }
 
     #[test]
