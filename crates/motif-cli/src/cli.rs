@@ -640,7 +640,7 @@ pub struct MrfGenerateArgs {
     /// Neighbourhood: 6 or 26.
     #[arg(long, default_value_t = 6)]
     pub connectivity: u32,
-    /// Output JSON file.
+    /// Output JSON file (`-` prints it on stdout).
     #[arg(short, long, value_parser = json_path)]
     pub output: PathBuf,
 }

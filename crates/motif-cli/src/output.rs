@@ -234,7 +234,7 @@ pub fn set_command_path(path: Vec<String>) {
 /// The operating system's messages in the style of Motif's own: lower case, without the
 /// "(os error N)" suffix (`nope.json: no such file or directory`, as `sparsity` and the file
 /// checks already said, rather than `No such file or directory (os error 2)`).
-fn plain_os_text(msg: &str) -> String {
+pub fn plain_os_text(msg: &str) -> String {
     let mut out = String::with_capacity(msg.len());
     let mut rest = msg;
     while let Some(i) = rest.find(" (os error ") {

@@ -129,9 +129,42 @@ impl DetectionResult {
 
     /// Parses and validates a detection or ground truth from JSON text; `origin` names the
     /// source in errors.
+    ///
+    /// A value of the wrong type or shape is named by its field's JSON path, as [`Self::validate`]
+    /// names bad values (`classes[0].instances[3].bbox_min`), instead of only by line and column;
+    /// Rust's type names (`u32`, `f64`, `struct DetectionResult`) are said in words.
     pub fn from_json_str(text: &str, origin: &Path) -> Result<Self> {
-        let result: Self = serde_json::from_str(text)
-            .map_err(|source| DetectError::Json { path: origin.to_path_buf(), source })?;
+        let origin_text = origin.display().to_string();
+        if !text.trim_start().starts_with('{') && serde_json::from_str::<serde_json::Value>(text).is_ok() {
+            return Err(DetectError::InvalidInput(format!(
+                "{origin_text}: not a detection/ground-truth JSON file: it holds no object, but a detection is an \
+                 object with a \"classes\" list (../shared/formats/detection.md)"
+            )));
+        }
+        let de = &mut serde_json::Deserializer::from_str(text);
+        let result: Self = match serde_path_to_error::deserialize(de) {
+            Ok(r) => r,
+            Err(e) => {
+                let field = e.path().to_string();
+                let source = e.into_inner();
+                if field.is_empty() || field == "." {
+                    return Err(DetectError::Json { path: origin.to_path_buf(), source });
+                }
+                // `motif detect --json` writes a report whose `classes` is a count.
+                let report = field == "classes"
+                    && ["\"options\"", "\"seconds\"", "\"report\""].iter().all(|k| text.contains(k));
+                let hint = if report {
+                    " (this looks like the report of `motif detect --json`; give the result it wrote with -o)"
+                } else {
+                    ""
+                };
+                return Err(DetectError::Invalid {
+                    origin: origin_text,
+                    field,
+                    problem: format!("{}{hint}", plain_serde_message(&source.to_string())),
+                });
+            }
+        };
         result.validate(&origin.display().to_string())?;
         Ok(result)
     }
@@ -155,4 +188,21 @@ impl DetectionResult {
         })?;
         Ok(())
     }
+}
+
+/// serde's message with Rust's type names in words: `expected u32` → "expected a whole number
+/// (0 or more)", `expected f64` → "expected a number", `struct Instance` → "an object".
+fn plain_serde_message(msg: &str) -> String {
+    let mut out = msg
+        .replace("expected u32", "expected a whole number (0 or more)")
+        .replace("expected u64", "expected a whole number (0 or more)")
+        .replace("expected usize", "expected a whole number (0 or more)")
+        .replace("expected f64", "expected a number")
+        .replace("expected f32", "expected a number");
+    while let Some(i) = out.find("struct ") {
+        let rest = &out[i + "struct ".len()..];
+        let name_len = rest.bytes().take_while(|b| b.is_ascii_alphanumeric() || *b == b'_').count();
+        out = format!("{}an object{}", &out[..i], &rest[name_len..]);
+    }
+    out
 }

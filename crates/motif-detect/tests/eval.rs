@@ -334,6 +334,18 @@ fn json_round_trip() {
     let parsed =
         DetectionResult::from_json_str(minimal, std::path::Path::new("minimal.json")).expect("parse");
     assert_eq!(parsed, one_box([0.0; 3], [1.0; 3]).with_scene("s.ply"));
+    // Values of the wrong shape or type are named by their field, in words rather than Rust's.
+    let at = std::path::Path::new("bad.json");
+    let err = |text: &str| DetectionResult::from_json_str(text, at).expect_err("refused").to_string();
+    let e = err(&minimal.replace("\"bbox_min\": [0, 0, 0]", "\"bbox_min\": [0, 0]"));
+    assert!(e.contains("bad.json: field `classes[0].instances[0].bbox_min`: invalid length 2"), "{e}");
+    let e = err(&minimal.replace("\"bbox_min\"", "\"points\": [1, -2], \"bbox_min\""));
+    assert!(e.contains("field `classes[0].instances[0].points[1]`") && e.contains("a whole number"), "{e}");
+    assert!(!e.contains("u32"), "{e}");
+    let e = err("[1, 2]");
+    assert!(e.contains("bad.json: not a detection/ground-truth JSON file: it holds no object"), "{e}");
+    let e = err(r#"{"classes": 2, "input": "s.ply", "options": {}, "report": {}, "seconds": 1}"#);
+    assert!(e.contains("field `classes`") && e.contains("report of `motif detect --json`"), "{e}");
     // Report and summary serialise too.
     let rep = evaluate(&det, &det, &EvalOptions::default()).expect("valid");
     let json = serde_json::to_string(&rep).expect("serialise");

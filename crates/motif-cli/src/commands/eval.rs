@@ -133,6 +133,12 @@ pub(crate) fn print_annotated<'a>(
 /// overflows; see `motif_detect::eval`).
 fn pair_warnings(d: &DetectionResult, gt: &DetectionResult, dp: &Path, gp: &Path) -> Vec<String> {
     let mut out = Vec::new();
+    if std::fs::canonicalize(dp).ok().is_some_and(|a| std::fs::canonicalize(gp).ok() == Some(a)) {
+        out.push(format!(
+            "{} is given as both the result and the ground truth: it scores 1 against itself",
+            dp.display()
+        ));
+    }
     if !d.scene.is_empty() && !gt.scene.is_empty() && d.scene != gt.scene {
         out.push(format!(
             "{} is a result for scene `{}` but {} annotates scene `{}`",

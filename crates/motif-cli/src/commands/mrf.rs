@@ -107,6 +107,11 @@ pub fn generate(a: MrfGenerateArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         .ok_or_else(|| bad_input(format!("--connectivity {}: must be 6 or 26", a.connectivity)))?;
     let problem = generate_grid(dims, a.labels, connectivity, g.seed);
     let text = problem.to_json_string();
+    // `-` prints the problem, as `detect -o -` prints its result (a file named `-` was made).
+    if a.output == std::path::Path::new("-") {
+        println!("{text}");
+        return Ok(());
+    }
     motif_core::io::write_atomic(&a.output, |w| w.write_all(text.as_bytes()))?;
     super::note(
         g,
