@@ -545,7 +545,8 @@ pub struct ExampleArgs {
     /// Benchmark scenes: number of points (default 300000).
     #[arg(long)]
     pub points: Option<usize>,
-    /// Benchmark scenes: meshes used as extra building blocks, comma-separated.
+    /// Benchmark scenes: meshes used as extra building blocks, comma-separated (in
+    /// `scene-parts` they replace the generated car, bin and lamp post).
     #[arg(long, value_delimiter = ',', value_name = "FILES", value_parser = listed_path)]
     pub parts: Vec<PathBuf>,
     #[command(flatten)]

@@ -107,6 +107,7 @@ fn parse_arguments() -> cli::Cli {
     }
     let mut cmd = negatives(cli::Cli::command());
     let matches = cmd.try_get_matches_from_mut(std::env::args_os()).unwrap_or_else(|e| {
+        plain_number_error(&e);
         picture_flag_error(&cmd, &e).unwrap_or(e).exit();
     });
     // The subcommand path (`baseline rigid-icp`), so that errors name its own flags.
@@ -118,6 +119,27 @@ fn parse_arguments() -> cli::Cli {
     }
     output::set_command_path(path);
     cli::Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit())
+}
+
+/// A count given as `-1` or `1.5` (`--seed -1`, `--dims 2,-2,2`): Rust's own words, "invalid
+/// digit found in string", said as what the option takes; exits 2 as clap does.
+fn plain_number_error(e: &clap::Error) {
+    if e.kind() != clap::error::ErrorKind::ValueValidation {
+        return;
+    }
+    let text = e.to_string();
+    let rust = "invalid digit found in string";
+    if !text.contains(rust) {
+        return;
+    }
+    let negative = text.contains("invalid value '-");
+    let said = if negative {
+        "negative, but it takes a whole number, 0 or more"
+    } else {
+        "not a whole number (it takes one such as 0, 1, 2)"
+    };
+    eprint!("{}", text.replace(rust, said));
+    std::process::exit(2);
 }
 
 /// `motif retarget` draws its picture with `--preview`, every other command with `--plot`: an

@@ -2015,6 +2015,14 @@ fn reports_and_errors_speak_the_command_line() {
     let o = motif(&["retarget", "s.obj", "--steps", "a,1", "-o", "r2.obj"], dir);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("not a whole number of cells"), "{}", stderr(&o));
+    // So do negative and fractional counts of any option.
+    for (flag, value, says) in
+        [("--seed", "-1", "negative, but it takes a whole number"), ("--seed", "1.5", "not a whole number")]
+    {
+        let o = motif(&["offsets", "s.obj", flag, value], dir);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains(says) && !stderr(&o).contains("invalid digit"), "{}", stderr(&o));
+    }
     // SHOT descriptors are not written under a model's name (PEERSHOT bytes in a .ply).
     let o = motif(&["features", "shot", "s.obj", "--radius", "0.1", "--every", "50", "-o", "f.ply"], dir);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
@@ -2186,4 +2194,18 @@ fn sparsity_fails_on_a_named_bad_file_and_skips_one_in_a_folder() {
         serde_json::from_str(&std::fs::read_to_string(d.path().join("sp.json")).unwrap()).unwrap();
     let models = report["models"].as_array().unwrap();
     assert!(models.iter().any(|m| m["error"].as_str().is_some_and(|e| e.contains("NaN"))), "{report}");
+}
+
+/// Retargeting stitches positions and triangles: what else the input's vertices carry is named
+/// in a warning (it was dropped without a word).
+#[test]
+fn retarget_names_the_vertex_data_it_does_not_carry() {
+    let d = tmp();
+    assert!(motif(&["example", "shelf", "s.obj"], d.path()).status.success());
+    assert!(motif(&["normals", "s.obj", "n.ply"], d.path()).status.success());
+    let o = motif(&["-q", "retarget", "n.ply", "--steps", "1", "-o", "r.ply"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("the vertices' normals are not carried into r.ply"), "{}", stderr(&o));
+    let o = motif(&["-q", "retarget", "s.obj", "--steps", "1", "-o", "r.obj"], d.path());
+    assert!(o.status.success() && !stderr(&o).contains("not carried"), "{}", stderr(&o));
 }

@@ -793,7 +793,15 @@ pub fn plot_detections(
         // Legend.
         let mut y = 20;
         legend
-            .draw(&Text::new(format!("{} classes", result.classes.len()), (10, y), (FONT, 16).into_font()))
+            .draw(&Text::new(
+                format!(
+                    "{} {}",
+                    result.classes.len(),
+                    if result.classes.len() == 1 { "class" } else { "classes" }
+                ),
+                (10, y),
+                (FONT, 16).into_font(),
+            ))
             .map_err(|e| plot_err(path, e))?;
         y += 28;
         for (c, class) in result.classes.iter().enumerate().take(30) {
@@ -801,10 +809,11 @@ pub fn plot_detections(
             legend
                 .draw(&Rectangle::new([(10, y + 2), (26, y + 14)], colour.filled()))
                 .map_err(|e| plot_err(path, e))?;
+            let n = class.instances.len();
             let label = format!(
-                "{}: {} instances",
+                "{}: {n} {}",
                 class.name.clone().unwrap_or_else(|| format!("class {c}")),
-                class.instances.len()
+                if n == 1 { "instance" } else { "instances" }
             );
             legend.draw(&Text::new(label, (34, y), (FONT, 14).into_font())).map_err(|e| plot_err(path, e))?;
             y += 22;

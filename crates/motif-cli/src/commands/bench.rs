@@ -55,7 +55,16 @@ pub(crate) fn data_dir(given: &Option<PathBuf>) -> anyhow::Result<Option<PathBuf
             if d.exists() { "not a folder" } else { "no such folder" }
         ))),
         Some(d) => Ok(Some(d.clone())),
-        None => Ok(motif_core::data::shared_data_dir(Path::new("."))),
+        // A MOTIF_DATA that names no folder is a mistake, as `--data` naming none is (the rows of
+        // real models were skipped with a hint to set the variable that was set).
+        None => match std::env::var_os("MOTIF_DATA").map(PathBuf::from) {
+            Some(d) if !d.as_os_str().is_empty() && !d.is_dir() => Err(crate::output::bad_input(format!(
+                "MOTIF_DATA={}: {}",
+                d.display(),
+                if d.exists() { "not a folder" } else { "no such folder" }
+            ))),
+            _ => Ok(motif_core::data::shared_data_dir(Path::new("."))),
+        },
     }
 }
 

@@ -194,13 +194,14 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         let r = &detection.report;
         let per: Vec<String> = r.instances_per_class.iter().map(|n| n.to_string()).collect();
         println!(
-            "{}: {} ({} {}) from {} points, ε = {:.4}, {} features, {} in {:.2} s",
+            "{}: {} ({} {}) from {} points, ε = {}, {} features, {} in {:.2} s",
             a.input.display(),
             crate::output::count(detection.result.classes.len(), "class", "classes"),
             if per.is_empty() { "no".to_string() } else { per.join(" + ") },
             if r.instances_per_class.iter().sum::<usize>() == 1 { "instance" } else { "instances" },
             r.input_points,
-            r.epsilon,
+            // Four decimals in model units; in exponent form when the scene is far from unit size.
+            motif_core::geometry::format_length(r.epsilon, r.epsilon, 4),
             r.features,
             if a.no_em { "SC (no EM)" } else { "EM + SC" },
             seconds

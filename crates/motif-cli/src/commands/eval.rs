@@ -34,13 +34,13 @@ pub fn run(a: EvalArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     if !crate::output::json_on_stdout(&a.json.json) {
         for (s, pair) in summary.scenes.iter().zip(a.files.chunks(2)) {
             println!(
-                "{}: P {:.3}  R {:.3}  F {:.3}  ({} detected classes / {} instances vs {} / {} annotated)",
+                "{}: P {:.3}  R {:.3}  F {:.3}  ({} / {} vs {} / {} annotated)",
                 pair[0].display(),
                 s.precision,
                 s.recall,
                 s.f,
-                s.detected_classes,
-                s.detected_instances,
+                crate::output::count(s.detected_classes, "detected class", "detected classes"),
+                crate::output::count(s.detected_instances, "instance", "instances"),
                 s.ground_truth_classes,
                 s.ground_truth_instances
             );

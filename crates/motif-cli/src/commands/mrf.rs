@@ -48,6 +48,17 @@ pub fn solve(a: MrfSolveArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         m.insert("seed".into(), serde_json::json!(g.seed));
     }
     maybe_json(&a.json.json, &report)?;
+    // On stderr too, so that a report on stdout (or a reader of the energy alone) is told: the
+    // energy of a non-metric problem may lie above the optimum (a negative entry gave 3 where 2
+    // was reachable).
+    if let Some(first) = sol.pairwise_issues.first() {
+        super::warn(format!(
+            "{}: the pairwise matrix is not a metric ({first}{}): alpha-expansion is exact in its moves only for a \
+             metric, so the energy may lie above the optimum",
+            a.problem.display(),
+            if sol.pairwise_issues.len() > 1 { ", and more" } else { "" }
+        ));
+    }
     if crate::output::json_on_stdout(&a.json.json) {
         return Ok(());
     }
@@ -58,9 +69,9 @@ pub fn solve(a: MrfSolveArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     );
     println!("  energy       {} (from {} at the start)", sol.energy, sol.initial_energy);
     println!(
-        "  cycles       {} ({} moves, {} accepted; {})",
+        "  cycles       {} ({}, {} accepted; {})",
         sol.cycles,
-        sol.moves,
+        crate::output::count(sol.moves, "move", "moves"),
         sol.accepted_moves,
         sol.termination.as_str()
     );

@@ -13,7 +13,10 @@ pub fn offsets(a: OffsetsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     check_outputs(&[a.plot.as_deref(), a.json.json.as_deref()], &[&a.mesh], g.force)?;
     crate::output::check_output_formats(&[(a.plot.as_deref(), crate::output::OutputKind::Png)])?;
     if !(a.tau >= 0.0 && a.tau < 2.0) {
-        return Err(bad_input(format!("--tau {}: in normalised units, between 0 and 2", a.tau)));
+        return Err(bad_input(format!(
+            "--tau {}: in normalised units, at least 0 and below 2 (the model spans [−1, 1])",
+            a.tau
+        )));
     }
     let mesh = motif_core::io::read_mesh(&a.mesh)?;
     let options = OffsetOptions { tau: a.tau, seed: g.seed, ..Default::default() };

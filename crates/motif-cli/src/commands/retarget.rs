@@ -216,7 +216,7 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         (Some(&a.output), crate::output::OutputKind::Model),
         (a.preview.as_deref(), crate::output::OutputKind::Png),
     ])?;
-    let mesh = motif_core::io::read_mesh(&a.mesh)?;
+    let mesh = read_mesh_saying_what_is_lost(&a.mesh, &a.output)?;
     let given = a.offsets.as_deref().map(parse_offsets).transpose()?;
     // A given offset at least as long as the model along it shifts copies clear of each other:
     // nothing overlaps to stitch, and the "copies" come out as separate models.
@@ -662,4 +662,37 @@ fn nearest_steps(principal: &[[f64; 3]], model_size: [f64; 3], size: [f64; 3], s
         }
     }
     best
+}
+
+/// Reads the mesh to retarget, with the reader's warnings (ignored texture coordinates,
+/// materials), and a warning naming what the vertices carry that the output will not: the
+/// stitched copies are built from positions and triangles, so colours, normals and other
+/// per-vertex attributes were dropped without a word (`convert` says so for the formats it
+/// writes).
+fn read_mesh_saying_what_is_lost(
+    path: &std::path::Path,
+    output: &std::path::Path,
+) -> anyhow::Result<TriMesh> {
+    let model = super::read_model(path)?;
+    for w in &model.warnings {
+        super::warn(format!("{}: {w}", path.display()));
+    }
+    let v = &model.vertices;
+    let mut lost: Vec<String> = Vec::new();
+    if v.normals.is_some() {
+        lost.push("normals".into());
+    }
+    if v.colors.is_some() {
+        lost.push("colours".into());
+    }
+    lost.extend(v.attributes.iter().map(|a| format!("`{}`", a.name)));
+    if model.is_mesh() && !lost.is_empty() {
+        super::warn(format!(
+            "{}: the vertices' {} are not carried into {} (retargeting stitches positions and triangles)",
+            path.display(),
+            lost.join(", "),
+            output.display()
+        ));
+    }
+    Ok(motif_core::io::read_mesh_from(model, path)?)
 }

@@ -321,7 +321,11 @@ fn add_format_hint(e: Error, bytes: &[u8], format: Format) -> Error {
 
 /// Reads a triangle mesh; a file without faces is an error naming the file.
 pub fn read_mesh(path: &Path) -> Result<TriMesh> {
-    let model = read(path)?;
+    read_mesh_from(read(path)?, path)
+}
+
+/// The mesh of a model read from `path`, or the error [`read_mesh`] gives when it has no faces.
+pub fn read_mesh_from(model: Model, path: &Path) -> Result<TriMesh> {
     if !model.is_mesh() {
         return Err(Error::InvalidInput(format!(
             "{}: has {} but no faces; a triangle mesh is needed here",
