@@ -58,7 +58,8 @@ fn detected_rows(r: &EvalReport) -> Vec<(String, usize, usize)> {
     r.detected
         .iter()
         .map(|d| {
-            let against = d.best_annotated.and_then(|i| names.get(i).copied()).unwrap_or("nothing");
+            let against =
+                d.best_annotated.and_then(|i| names.get(i).copied()).unwrap_or("no annotated class");
             (
                 format!("{}: {} of {} credited, as {against}", d.name, d.credited, d.instances),
                 d.instances,
@@ -71,7 +72,7 @@ fn detected_rows(r: &EvalReport) -> Vec<(String, usize, usize)> {
 impl EvalCurves for EvalReport {
     fn title(&self) -> String {
         format!(
-            "{}: P {:.3}, R {:.3}, F {:.3} at tau {}",
+            "{}: P {:.3}, R {:.3}, F {:.3} at τ = {}",
             self.scene, self.precision, self.recall, self.f, self.tau
         )
     }
@@ -103,7 +104,7 @@ impl EvalCurves for EvalSummary {
             return scene.title();
         }
         format!(
-            "mean of {} scenes: P {:.3}, R {:.3}, F {:.3} at tau {}",
+            "mean of {} scenes: P {:.3}, R {:.3}, F {:.3} at τ = {}",
             self.scenes.len(),
             self.precision,
             self.recall,
@@ -115,11 +116,20 @@ impl EvalCurves for EvalSummary {
         if let [scene] = self.scenes.as_slice() {
             return scene.pr_points();
         }
-        // Labelled with the number of classes removed (scenes differ in how many they have).
+        // Labelled with the number of classes removed (scenes differ in how many they have); a
+        // point past the end of some scenes' curves is the mean of the others, and says of how
+        // many (the mean of one scene read as the mean of all).
+        let n = self.scenes.len();
         self.mean_pr_curve
             .iter()
             .map(|&(removed, p, r)| {
-                (Some(if removed == 0 { "all".to_string() } else { format!("−{removed}") }), r, p)
+                let k = self.scenes.iter().filter(|s| removed < s.detected_classes).count();
+                let label = match (removed, k < n) {
+                    (0, _) => "all".to_string(),
+                    (_, false) => format!("−{removed}"),
+                    (_, true) => format!("−{removed} ({k} of {n} scenes)"),
+                };
+                (Some(label), r, p)
             })
             .collect()
     }
@@ -160,15 +170,18 @@ pub fn plot_pr_and_stress(curves: &impl EvalCurves, path: &Path) -> Result<()> {
 /// [`plot_pr_and_stress`] under another title (what was run, for a benchmark's picture).
 pub fn plot_pr_and_stress_titled(curves: &impl EvalCurves, title: &str, path: &Path) -> Result<()> {
     register_fonts();
-    let size = (2400u32, 560u32);
+    // Four panels in a 2 × 2 grid: a 2400 × 560 strip of four came out at about 6 pt when shown
+    // at a page's width.
+    let size = (1800u32, 1200u32);
     let mut buf = vec![255u8; size.0 as usize * size.1 as usize * 3];
     {
         let root = TextFix(BitMapBackend::with_buffer(&mut buf, size)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
-        let root = root.titled(title, (FONT, 20)).map_err(|e| plot_err(path, e))?;
-        let (left, rest) = root.split_horizontally(size.0 / 4);
-        let (right, rest) = rest.split_horizontally(size.0 / 4);
-        let (classes, detected) = rest.split_horizontally(size.0 / 4);
+        let root = root.titled(title, (FONT, 22)).map_err(|e| plot_err(path, e))?;
+        let panels = root.split_evenly((2, 2));
+        let [left, right, classes, detected] = &panels[..] else {
+            return Err(plot_err(path, "four panels"));
+        };
         let pr_colour = RGBColor(214, 39, 40);
         let pr = curves.pr_points();
         let pr_caption = if pr.iter().any(|(l, _, _)| l.as_deref().is_some_and(|l| l.starts_with('−'))) {
@@ -180,7 +193,7 @@ pub fn plot_pr_and_stress_titled(curves: &impl EvalCurves, title: &str, path: &P
         let labels: Vec<Option<String>> = pr.iter().map(|(l, _, _)| l.clone()).collect();
         let note = points.is_empty().then_some("no detected class");
         draw_curve(
-            &left,
+            left,
             &points,
             &labels,
             pr_caption,
@@ -198,7 +211,7 @@ pub fn plot_pr_and_stress_titled(curves: &impl EvalCurves, title: &str, path: &P
         let none: Vec<Option<String>> = vec![None; stress.len()];
         let all_zero = stress.iter().all(|p| p.1 == 0.0);
         draw_curve(
-            &right,
+            right,
             &stress,
             &none,
             "(b) stress test: F as the overlap required rises",
@@ -210,9 +223,9 @@ pub fn plot_pr_and_stress_titled(curves: &impl EvalCurves, title: &str, path: &P
             all_zero.then_some("F = 0 at every τ"),
             path,
         )?;
-        draw_class_shares(&classes, &curves.annotated(), path)?;
+        draw_class_shares(classes, &curves.annotated(), path)?;
         let (caption, rows) = curves.precision_rows();
-        draw_precision_rows(&detected, caption, &rows, path)?;
+        draw_precision_rows(detected, caption, &rows, path)?;
         root.present().map_err(|e| plot_err(path, e))?;
     }
     motif_core::io::write_png_rgb(path, size.0, size.1, &buf).map_err(|e| plot_err(path, e))
@@ -473,7 +486,11 @@ pub fn plot_bench(rows: &[BenchRow], title: &str, tau: f64, path: &Path) -> Resu
         let width = 0.8 / methods.len().max(1) as f64;
         let mut chart = ChartBuilder::on(&left)
             .caption(
-                format!("(a) mean F at τ = {tau}, ±1 standard error over the scenes"),
+                if rows.iter().all(|r| r.f_se.is_none()) {
+                    format!("(a) F at τ = {tau} (one scene: no standard error)")
+                } else {
+                    format!("(a) mean F at τ = {tau}, ±1 standard error over the scenes")
+                },
                 (FONT, 18).into_font(),
             )
             .margin(16)
@@ -670,8 +687,9 @@ const MAX_DRAWN: usize = 400_000;
 /// `labels[i]` is point i's `(class, instance)`.
 ///
 /// The first view looks along the axis in which the instance boxes, projected, overlap each other
-/// least ([`view_axes`]), so that each block is seen apart: a facade or a street from the front,
-/// parts standing on the ground from above. The points' thinnest extent, which this view used
+/// least (the summed areas of their pairwise intersections over their summed areas), so that
+/// each block is seen apart: a facade or a street from the front, parts standing on the ground
+/// from above. The points' thinnest extent, which this view used
 /// to follow, picks the ground view of a street whose depth (pavement, parked cars, the far
 /// side) is a little less than its height, where every window collapses onto one line. The
 /// second view looks along the axis of the next least overlap. Without instances, the points'
@@ -912,4 +930,56 @@ fn view_chart<'a, DB: DrawingBackend>(
         .x_label_area_size(32)
         .y_label_area_size(50)
         .build_cartesian_2d(x, y)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{DetectedClass, DetectedInstance, DetectionResult};
+
+    fn boxes(b: &[([f64; 3], [f64; 3])]) -> DetectedClass {
+        DetectedClass {
+            name: None,
+            instances: b.iter().map(|&(lo, hi)| DetectedInstance::from_box(lo, hi)).collect(),
+        }
+    }
+
+    /// A street: windows on the wall (z near 0) in a 6 × 4 grid, and parked cars spread over a
+    /// deep street (z 2–14) more than the windows spread in height. The view along z sees every
+    /// box apart; the points' thinnest extent (y, 13 against z's 14) and the spread of the boxes'
+    /// centres (z, with the cars) both chose another.
+    #[test]
+    fn the_first_view_sees_the_boxes_apart() {
+        let mut windows = Vec::new();
+        for i in 0..6 {
+            for j in 0..4 {
+                let (x, y) = (3.0 * i as f64, 3.0 * j as f64 + 1.0);
+                windows.push(([x, y, -0.2], [x + 1.5, y + 2.0, 0.2]));
+            }
+        }
+        let cars: Vec<_> = (0..8)
+            .map(|k| {
+                let (x, z) = (2.5 * k as f64, 2.0 + 12.0 * (k % 2) as f64);
+                ([x, 0.0, z - 1.0], [x + 2.0, 1.5, z + 1.0])
+            })
+            .collect();
+        let result = DetectionResult { scene: String::new(), classes: vec![boxes(&windows), boxes(&cars)] };
+        let (lo, hi) = ([0.0, 0.0, -1.0], [20.0, 13.0, 15.0]);
+        assert_eq!(view_axes(&result, lo, hi)[0], 2);
+        // Without instances the points' extents decide, thinnest first.
+        let empty = DetectionResult { scene: String::new(), classes: vec![] };
+        assert_eq!(view_axes(&empty, lo, hi), [1, 2, 0]);
+    }
+
+    #[test]
+    fn views_are_drawn_to_scale() {
+        // A 20 × 5 range on 1000 × 500 pixels: y widens to 10 about its centre.
+        let (x, y) = equal_scale(0.0..20.0, 0.0..5.0, (1000, 500));
+        assert_eq!((x.start, x.end), (0.0, 20.0));
+        assert!((y.start + 2.5).abs() < 1e-12 && (y.end - 7.5).abs() < 1e-12, "{y:?}");
+        // A tall range widens x instead.
+        let (x, y) = equal_scale(0.0..1.0, 0.0..10.0, (1000, 500));
+        assert!(((x.end - x.start) / 1000.0 - (y.end - y.start) / 500.0).abs() < 1e-12);
+        assert_eq!((y.start, y.end), (0.0, 10.0));
+    }
 }

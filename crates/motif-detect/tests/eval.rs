@@ -430,9 +430,10 @@ fn plots_are_png() {
         result.expect("plot");
         let bytes = std::fs::read(dir.path().join(name)).expect("png written");
         assert!(bytes.starts_with(b"\x89PNG\r\n\x1a\n") && bytes.len() > 1000);
-        // Four panels: PR curve, stress curve, annotated classes, detected classes or scenes
-        // (IHDR width, big-endian).
-        assert_eq!(u32::from_be_bytes([bytes[16], bytes[17], bytes[18], bytes[19]]), 2400);
+        // Four panels in a 2 × 2 grid: PR curve, stress curve, annotated classes, detected
+        // classes or scenes (IHDR width and height, big-endian).
+        assert_eq!(u32::from_be_bytes([bytes[16], bytes[17], bytes[18], bytes[19]]), 1800);
+        assert_eq!(u32::from_be_bytes([bytes[20], bytes[21], bytes[22], bytes[23]]), 1200);
     }
     let err = plot_pr_and_stress(&rep, &dir.path().join("no_dir/x.png")).expect_err("bad dir");
     assert!(matches!(err, DetectError::Plot { .. }));

@@ -174,7 +174,7 @@ pub fn plot_offsets(analysis: &OffsetAnalysis, title: &str, path: &Path) -> Resu
                 "offsets on the {}{} plane ({within} within a bin of it; bin {}, log colour)",
                 name[a], name[b], analysis.bin_size
             );
-            draw_projection(&square, analysis, a, b, &caption, extent, path)?;
+            draw_projection(&square, analysis, a, b, &caption, extent, None, path)?;
             let (bars, text) = right.split_vertically(400);
             draw_bars(&bars, analysis, path)?;
             return draw_text(&text, analysis, title, path);
@@ -183,7 +183,8 @@ pub fn plot_offsets(analysis: &OffsetAnalysis, title: &str, path: &Path) -> Resu
         let axes = [(0usize, 1usize, "XY"), (0, 2, "XZ"), (1, 2, "YZ")];
         for (panel, &(a, b, name)) in panels.iter().zip(axes.iter()) {
             let caption = format!("offsets projected on {name} (bin {}, log colour)", analysis.bin_size);
-            draw_projection(panel, analysis, a, b, &caption, extent, path)?;
+            let tau = analysis.parameters.tau;
+            draw_projection(panel, analysis, a, b, &caption, extent, Some(tau), path)?;
         }
         draw_summary(&bottom, analysis, title, path)
     })
@@ -210,10 +211,11 @@ fn peak_marks(
     analysis: &OffsetAnalysis,
     at: impl Fn(&crate::offsets::DominantOffset, f64) -> (f64, f64),
     label_at: impl Fn((f64, f64)) -> (f64, f64),
+    keep: impl Fn(&crate::offsets::DominantOffset) -> bool,
 ) -> (Vec<Circle<(f64, f64), i32>>, Vec<Text<'static, (f64, f64), String>>) {
     let mut rings = Vec::new();
     let mut labels = Vec::new();
-    for (k, d) in analysis.dominant.iter().enumerate() {
+    for (k, d) in analysis.dominant.iter().enumerate().filter(|(_, d)| keep(d)) {
         let colour = dominant_colour(analysis, d.status);
         for s in [1.0, -1.0] {
             rings.push(Circle::new(at(d, s), 9, colour.stroke_width(2)));
@@ -371,6 +373,7 @@ fn draw_profile(
         analysis,
         |d, s| (s * d.offset[a], (d.peak.support as f64).max(1.0)),
         |p| (p.0 + 0.015 * extent, p.1 * 1.35),
+        |_| true,
     );
     chart.draw_series(rings).map_err(|e| plot_err(path, e))?;
     chart.draw_series(labels).map_err(|e| plot_err(path, e))?;
@@ -398,6 +401,7 @@ fn draw_profile(
     Ok(())
 }
 
+#[allow(clippy::too_many_arguments)]
 fn draw_projection(
     area: &DrawingArea<TextFix<BitMapBackend<'_>>, Shift>,
     analysis: &OffsetAnalysis,
@@ -405,6 +409,7 @@ fn draw_projection(
     b: usize,
     caption: &str,
     extent: f64,
+    ring_slab: Option<f64>,
     path: &Path,
 ) -> Result<()> {
     let axis = ["x", "y", "z"];
@@ -459,6 +464,9 @@ fn draw_projection(
         analysis,
         |d, s| (s * d.offset[a], s * d.offset[b]),
         |p| (p.0 + 0.02 * extent, p.1 + 0.03 * extent),
+        // In the three projections, a peak is circled in those whose plane it lies near: the
+        // heat sink's XZ and YZ views showed a chain of 25 rings, the XY view's peaks projected.
+        |d| ring_slab.is_none_or(|slab| d.offset[3 - a - b].abs() <= slab),
     );
     chart.draw_series(rings).map_err(|e| plot_err(path, e))?;
     chart.draw_series(labels).map_err(|e| plot_err(path, e))?;
@@ -760,6 +768,13 @@ fn draw_text(
         13,
         grey,
     ));
+    if line_axis(analysis).is_none() && plane_axes(analysis).is_none() {
+        lines.push((
+            "each projection circles the peaks within τ of its plane; the bars show them all".into(),
+            13,
+            grey,
+        ));
+    }
     let t = &analysis.timings;
     lines.push((
         format!("model units; normalised = {:.4} x (model - centre)", analysis.normalisation.scale),
@@ -795,8 +810,14 @@ fn draw_text(
 pub fn plot_sparsity(report: &SparsityReport, path: &Path) -> Result<()> {
     render_png(path, (1400, 620), |root| {
         let (left, right) = root.split_horizontally(700);
-        draw_curves(&left, report, 1.0, "(a) cumulative distribution (x: thesis, τ = 0.15)", path)?;
-        draw_curves(&right, report, 0.2, "(b) zoom-in: the first 20% of the bins", path)
+        draw_curves(
+            &left,
+            report,
+            1.0,
+            "(a) offsets in the largest bins, category means (×: thesis, τ = 0.15)",
+            path,
+        )?;
+        draw_curves(&right, report, 0.2, "(b) zoom-in: the first 20% of the bins (legend in (a))", path)
     })
 }
 
@@ -855,7 +876,7 @@ fn draw_curves(
                 .map(|(i, &y)| (100.0 * i as f64 / (n - 1) as f64, 100.0 * y))
                 .filter(|&(x, _)| x <= xmax * 100.0 + 1e-9)
                 .collect();
-            let label = format!("{} ({}), tau = {}", c.category.as_str(), c.models, t.tau);
+            let label = format!("{} ({}), τ = {}", c.category.as_str(), c.models, t.tau);
             let width = if (t.tau - 0.15).abs() < 1e-9 { 4 } else { 2 };
             let style = colour.stroke_width(width);
             match c.category {
@@ -941,6 +962,11 @@ fn draw_curves(
                 .draw_series(std::iter::once(Circle::new(dot, 5, colour.filled())))
                 .map_err(|e| plot_err(path, e))?;
         }
+    }
+    // The zoom's uniform line runs along its lower edge, under a legend there; the zoom draws
+    // the same series, named by panel (a)'s legend.
+    if xmax < 1.0 {
+        return Ok(());
     }
     chart
         .configure_series_labels()

@@ -212,8 +212,11 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         stages.push((dname, st));
     }
     let last_seed = g.seed.wrapping_add(a.scenes.saturating_sub(1) as u64);
-    let what =
-        format!("{} × {} scenes of {} points (seeds {}–{last_seed})", a.kind, a.scenes, a.points, g.seed);
+    let what = if a.scenes == 1 {
+        format!("{} × 1 scene of {} points (seed {})", a.kind, a.points, g.seed)
+    } else {
+        format!("{} × {} scenes of {} points (seeds {}–{last_seed})", a.kind, a.scenes, a.points, g.seed)
+    };
     if let Some(p) = &a.plot {
         let bench_rows: Vec<BenchRow> = rows
             .iter()
