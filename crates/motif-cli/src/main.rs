@@ -45,9 +45,15 @@ fn quiet_on_broken_pipe() {
             .map(String::as_str)
             .or_else(|| info.payload().downcast_ref::<&str>().copied())
             .unwrap_or("");
+        // The outputs written so far wait for their rename (`motif_core::io::defer_renames`): a
+        // reader that stops reading (`| head`) is no failure of the work, so the finished ones
+        // are put in place, as they were before renames were deferred; every other way out
+        // removes them, as a failed command does.
         if text.contains("Broken pipe") {
+            let _ = motif_core::io::commit_deferred();
             std::process::exit(141);
         }
+        motif_core::io::discard_deferred();
         // Any other failure to print results (a full disk, `> /dev/full`): an error line and
         // exit 1, not a panic with a backtrace.
         if let Some(reason) = text.strip_prefix("failed printing to stdout: ") {
@@ -62,15 +68,15 @@ fn quiet_on_broken_pipe() {
     }));
 }
 
-/// The arguments, with negative numbers taken as values everywhere: `--tau -1` is then refused
-/// by the option's own range check, which says what the range is, rather than read as an
-/// unknown flag `-1`.
 /// Ctrl-C (SIGINT), SIGTERM and SIGHUP end the process without unwinding: the writes in progress
 /// would leave their hidden temporary files (`.OUT.PID.N.tmp`, a megabyte for a large PLY)
 /// beside the outputs. A thread waits for those signals, removes the files, and then dies of the
 /// same signal (the default action, re-raised), so a shell sees a death by signal as before and
 /// a loop of commands stops at Ctrl-C. Signals the parent ignores (`nohup`, `cmd &` in a script)
-/// stay ignored. Outputs already written, and the files being replaced, are untouched.
+/// stay ignored. The files being replaced are untouched; outputs finished but not yet renamed into
+/// place (`motif_core::io::defer_renames`) are removed with the rest, so an interrupted command
+/// leaves none of its outputs, unless the interrupt comes while they are being renamed at the
+/// end: then each file is whole, old or new.
 #[cfg(unix)]
 fn remove_temporary_files_on_signals() {
     use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
@@ -100,6 +106,9 @@ fn ignored(signal: i32) -> bool {
         .is_some_and(|mask| (1..=64).contains(&signal) && mask >> (signal - 1) & 1 == 1)
 }
 
+/// The arguments, with negative numbers taken as values everywhere: `--tau -1` is then refused
+/// by the option's own range check, which says what the range is, rather than read as an
+/// unknown flag `-1`.
 fn parse_arguments() -> cli::Cli {
     fn negatives(cmd: clap::Command) -> clap::Command {
         cmd.mut_args(|a| if a.get_action().takes_values() { a.allow_negative_numbers(true) } else { a })

@@ -2209,3 +2209,30 @@ fn retarget_names_the_vertex_data_it_does_not_carry() {
     let o = motif(&["-q", "retarget", "s.obj", "--steps", "1", "-o", "r.obj"], d.path());
     assert!(o.status.success() && !stderr(&o).contains("not carried"), "{}", stderr(&o));
 }
+
+/// A reader that stops reading (`| head`) is no failure of the work: the outputs finished when
+/// the pipe closed are put in place, and no temporary file is left (renames are deferred to the
+/// end of a command, and the broken pipe ends it early).
+#[test]
+fn a_closed_stdout_keeps_the_finished_outputs() {
+    let d = tmp();
+    assert!(motif(&["example", "shelf", "s.obj"], d.path()).status.success());
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_motif"))
+        .args(["offsets", "s.obj", "--plot", "o.png"])
+        .current_dir(d.path())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    // The read end closes before the command prints its result.
+    drop(child.stdout.take());
+    let status = child.wait().unwrap();
+    assert!(matches!(status.code(), Some(141) | Some(0)), "{status:?}");
+    assert!(d.path().join("o.png").is_file(), "the picture was finished before the result was printed");
+    let temps: Vec<String> = std::fs::read_dir(d.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".tmp"))
+        .collect();
+    assert!(temps.is_empty(), "{temps:?}");
+}

@@ -147,7 +147,8 @@ impl DetectionResult {
             Err(e) => {
                 let field = e.path().to_string();
                 let source = e.into_inner();
-                if field.is_empty() || field == "." {
+                // Syntax errors (a cut file) are the file's, not a field's.
+                if field.is_empty() || field == "." || !source.is_data() {
                     return Err(DetectError::Json { path: origin.to_path_buf(), source });
                 }
                 // `motif detect --json` writes a report whose `classes` is a count.

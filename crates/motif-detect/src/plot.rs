@@ -710,7 +710,8 @@ pub fn plot_detections(
         .ok_or_else(|| plot_err(path, "no points to draw"))?;
     let (lo, hi) = (bounds.min, bounds.max);
     let axes = view_axes(result, lo, hi);
-    let spread_named = result.classes.iter().any(|c| !c.instances.is_empty());
+    // The boxes order the views when there are two or more to see apart (as `view_axes`).
+    let spread_named = result.classes.iter().map(|c| c.instances.len()).sum::<usize>() >= 2;
     // Each panel drops one axis and keeps the other two in x, y, z order.
     let panels: Vec<(usize, usize, usize)> = axes[..2]
         .iter()

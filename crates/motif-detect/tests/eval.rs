@@ -342,6 +342,9 @@ fn json_round_trip() {
     let e = err(&minimal.replace("\"bbox_min\"", "\"points\": [1, -2], \"bbox_min\""));
     assert!(e.contains("field `classes[0].instances[0].points[1]`") && e.contains("a whole number"), "{e}");
     assert!(!e.contains("u32"), "{e}");
+    // A cut file is a syntax error of the file, not of the field it stops in.
+    let e = err(&minimal[..minimal.len() / 2]);
+    assert!(e.contains("bad.json: not a detection/ground-truth JSON file") && !e.contains("field `"), "{e}");
     let e = err("[1, 2]");
     assert!(e.contains("bad.json: not a detection/ground-truth JSON file: it holds no object"), "{e}");
     let e = err(r#"{"classes": 2, "input": "s.ply", "options": {}, "report": {}, "seconds": 1}"#);

@@ -412,7 +412,17 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             // shelf chose +2,+1 and made it 1.5 high instead of keeping 1.13). One step along `o`
             // grows the box by |o| per axis, so the whole steps near the estimate are scored by
             // the distance of the size they give to the size asked ('-' asks for the model's own).
-            s = nearest_steps(&principal, model_size, size, s);
+            // No shrink below one cell that the estimate did not itself ask for: the model is
+            // about extent / |o| cells long along each offset.
+            let cells: Vec<i32> = principal
+                .iter()
+                .map(|o| {
+                    let len = motif_core::geometry::norm(*o);
+                    let d = normalize(*o).unwrap_or([1.0, 0.0, 0.0]);
+                    (extent_along(&mesh, d) / len).round() as i32
+                })
+                .collect();
+            s = nearest_steps(&principal, &cells, model_size, size, s);
             // An axis that no offset reaches (no offset has 5% of its length along it) keeps
             // its size: asking for another one there is refused, as --steps along a direction
             // without an offset is, instead of being ignored. Axes an offset reaches come as
@@ -625,10 +635,18 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
 }
 
 /// The whole steps within 3 of `start` along each of `principal` whose predicted box size,
-/// `model_size + Σₖ sₖ |oₖ|` per axis, is closest to `size` (Euclidean, model units); ties go to
-/// fewer steps in all, then to the lexicographically smaller step vector, so the choice is
-/// deterministic.
-fn nearest_steps(principal: &[[f64; 3]], model_size: [f64; 3], size: [f64; 3], start: [i32; 3]) -> [i32; 3] {
+/// `model_size + Σₖ sₖ |oₖ|` per axis, is closest to `size` (Euclidean, model units); ties (within
+/// 10⁻⁹ of the size asked, squared) go to fewer steps in all, then to the lexicographically
+/// smaller step vector, so the choice is deterministic. Along offset k no candidate keeps fewer
+/// than one of the model's `cells[k]` cells unless `start` already does (the session refuses it,
+/// in the user's terms, for the steps the estimate gave).
+fn nearest_steps(
+    principal: &[[f64; 3]],
+    cells: &[i32],
+    model_size: [f64; 3],
+    size: [f64; 3],
+    start: [i32; 3],
+) -> [i32; 3] {
     let m = principal.len().min(3);
     let predicted = |s: [i32; 3]| {
         let mut out = model_size;
@@ -643,8 +661,15 @@ fn nearest_steps(principal: &[[f64; 3]], model_size: [f64; 3], size: [f64; 3], s
         let p = predicted(s);
         (0..3).map(|i| (p[i] - size[i]).powi(2)).sum::<f64>()
     };
-    let range =
-        |k: usize| if k < m { start[k].saturating_sub(3)..=start[k].saturating_add(3) } else { 0..=0 };
+    let range = |k: usize| {
+        if k < m {
+            let floor = start[k].min(1 - cells.get(k).copied().unwrap_or(1));
+            start[k].saturating_sub(3).max(floor)..=start[k].saturating_add(3)
+        } else {
+            0..=0
+        }
+    };
+    let tie = 1e-9 * size.iter().map(|x| x * x).sum::<f64>().max(f64::MIN_POSITIVE);
     let mut best = start;
     let mut best_key = (error(start), start.iter().map(|x| x.unsigned_abs()).sum::<u32>(), start);
     for a in range(0) {
@@ -652,8 +677,8 @@ fn nearest_steps(principal: &[[f64; 3]], model_size: [f64; 3], size: [f64; 3], s
             for c in range(2) {
                 let s = [a, b, c];
                 let key = (error(s), s.iter().map(|x| x.unsigned_abs()).sum::<u32>(), s);
-                if key.0 < best_key.0 - 1e-12
-                    || ((key.0 - best_key.0).abs() <= 1e-12 && (key.1, key.2) < (best_key.1, best_key.2))
+                if key.0 < best_key.0 - tie
+                    || ((key.0 - best_key.0).abs() <= tie && (key.1, key.2) < (best_key.1, best_key.2))
                 {
                     best = s;
                     best_key = key;
@@ -695,4 +720,30 @@ fn read_mesh_saying_what_is_lost(
         ));
     }
     Ok(motif_core::io::read_mesh_from(model, path)?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::nearest_steps;
+
+    /// The sheared shelf: a step along the slanted offset also widens the model.
+    #[test]
+    fn steps_are_chosen_for_the_whole_size() {
+        let principal = [[0.42, 0.0, 0.0], [0.15, 0.37, 0.0]];
+        let model = [2.158, 1.13, 0.3];
+        // Per-offset estimates +2, +1 grow the height the '-' asked to keep.
+        assert_eq!(nearest_steps(&principal, &[4, 3], model, [3.0, 1.13, 0.3], [2, 1, 0]), [2, 0, 0]);
+        // Both sizes asked: the closest pair.
+        assert_eq!(nearest_steps(&principal, &[4, 3], model, [2.5, 1.5, 0.3], [1, 1, 0]), [0, 1, 0]);
+    }
+
+    /// No candidate shrinks below one cell unless the estimate did: a 3-cell row asked to be half
+    /// a cell long stays at the estimate's −2, not −3 (no cell left).
+    #[test]
+    fn no_shrink_below_one_cell() {
+        let principal = [[1.0, 0.0, 0.0]];
+        assert_eq!(nearest_steps(&principal, &[3], [3.0, 1.0, 1.0], [0.5, 1.0, 1.0], [-2, 0, 0]), [-2, 0, 0]);
+        // An estimate that already leaves no cell is kept, for the session to refuse in its terms.
+        assert_eq!(nearest_steps(&principal, &[3], [3.0, 1.0, 1.0], [0.1, 1.0, 1.0], [-3, 0, 0]), [-3, 0, 0]);
+    }
 }

@@ -18,7 +18,8 @@ use crate::{Error, Result};
 /// (so the final rename stays on one file system), which is flushed, fsynced and renamed over
 /// `path`; the directory is then fsynced (best effort) so the rename survives a crash. On any
 /// error, and if `f` panics, the temporary file is removed and an existing file at `path` is left
-/// untouched.
+/// untouched. After [`defer_renames`], the complete temporary file waits for
+/// [`commit_deferred`] instead of being renamed at once.
 ///
 /// Used by every mesh writer and by other writers of the project (CSV, JSON).
 pub fn write_atomic(path: &Path, f: impl FnOnce(&mut dyn Write) -> io::Result<()>) -> Result<()> {

@@ -315,7 +315,8 @@ impl Body for Ascii<'_> {
         self.record_line = None;
         let b = self.bytes;
         let mut p = self.pos;
-        while p < b.len() && matches!(b[p], b' ' | b'\t' | b'\r' | b'\x0b' | b'\x0c') {
+        // The whitespace `token` skips, but for the line's end.
+        while p < b.len() && b[p].is_ascii_whitespace() && b[p] != b'\n' {
             p += 1;
         }
         if p < b.len() && b[p] != b'\n' {
