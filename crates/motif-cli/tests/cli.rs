@@ -2146,12 +2146,7 @@ fn a_failed_command_leaves_no_output_and_bad_outputs_are_refused_first() {
         motif(&["-q", "retarget", "s.obj", "--steps", "1", "-o", "r.obj", "--json", "/dev/full"], d.path());
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(stderr(&o).contains("/dev/full: no space left on device"), "{}", stderr(&o));
-    let left: Vec<String> = std::fs::read_dir(d.path())
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .filter(|n| n != "s.obj")
-        .collect();
-    assert!(left.is_empty(), "left behind: {left:?}");
+    assert_eq!(files_in(d.path()), vec![d.path().join("s.obj")], "left behind");
     // The same command with a report that can be written leaves both.
     let o = motif(&["-q", "retarget", "s.obj", "--steps", "1", "-o", "r.obj", "--json", "r.json"], d.path());
     assert!(o.status.success(), "{}", stderr(&o));
@@ -2229,10 +2224,5 @@ fn a_closed_stdout_keeps_the_finished_outputs() {
     let status = child.wait().unwrap();
     assert!(matches!(status.code(), Some(141) | Some(0)), "{status:?}");
     assert!(d.path().join("o.png").is_file(), "the picture was finished before the result was printed");
-    let temps: Vec<String> = std::fs::read_dir(d.path())
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .filter(|n| n.ends_with(".tmp"))
-        .collect();
-    assert!(temps.is_empty(), "{temps:?}");
+    assert_no_stray_files(d.path());
 }

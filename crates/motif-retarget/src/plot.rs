@@ -102,7 +102,7 @@ pub fn principal_numbering(analysis: &OffsetAnalysis) -> Vec<(usize, usize)> {
 /// Colour of principal offset number `i` (grey when the verdict is "no repetition": the offsets
 /// were found but rejected).
 fn principal_colour(analysis: &OffsetAnalysis, i: usize) -> RGBColor {
-    if analysis.repetition.kind == crate::offsets::Repetition::NoRepetition {
+    if no_repetition(analysis) {
         RGBColor(150, 150, 150)
     } else {
         PRINCIPAL_COLOURS[i % PRINCIPAL_COLOURS.len()]
@@ -378,7 +378,7 @@ fn draw_profile(
     chart.draw_series(rings).map_err(|e| plot_err(path, e))?;
     chart.draw_series(labels).map_err(|e| plot_err(path, e))?;
     // Principal offsets: a line from the origin to each, at the top, labelled.
-    let rejected = analysis.repetition.kind == crate::offsets::Repetition::NoRepetition;
+    let rejected = no_repetition(analysis);
     for (row, (i, k)) in principal_numbering(analysis).into_iter().enumerate() {
         let p = &analysis.principal[k];
         let colour = principal_colour(analysis, i);
@@ -471,7 +471,7 @@ fn draw_projection(
     chart.draw_series(rings).map_err(|e| plot_err(path, e))?;
     chart.draw_series(labels).map_err(|e| plot_err(path, e))?;
     // Principal offsets as arrows (dashed when the verdict rejected them).
-    let rejected = analysis.repetition.kind == crate::offsets::Repetition::NoRepetition;
+    let rejected = no_repetition(analysis);
     // Label boxes placed so far ([x0, y0, x1, y1] in chart units), so that no label covers
     // another (the shelf's p1 label, left of its arrow, covered the start of p0's above its).
     let mut placed: Vec<[f64; 4]> = Vec::new();

@@ -391,11 +391,15 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         }
         (None, Some(size)) => {
             let mut s = [0; 3];
+            // The model is about extent / |o| cells long along each offset.
+            let mut cells = Vec::with_capacity(principal.len());
             for (k, o) in principal.iter().enumerate() {
                 let len = o.iter().map(|x| x * x).sum::<f64>().sqrt();
                 let d = normalize(*o).unwrap_or([1.0, 0.0, 0.0]);
                 let want: f64 = (0..3).map(|i| d[i].abs() * size[i]).sum();
-                let steps = ((want - extent_along(&mesh, d)) / len).round();
+                let extent = extent_along(&mesh, d);
+                cells.push((extent / len).round() as i32);
+                let steps = ((want - extent) / len).round();
                 // Beyond any grid the limits allow (10⁶ voxels): said in the user's terms
                 // rather than as a step count saturated at 2³¹ − 1.
                 if steps.abs() > 1e6 {
@@ -412,16 +416,7 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             // shelf chose +2,+1 and made it 1.5 high instead of keeping 1.13). One step along `o`
             // grows the box by |o| per axis, so the whole steps near the estimate are scored by
             // the distance of the size they give to the size asked ('-' asks for the model's own).
-            // No shrink below one cell that the estimate did not itself ask for: the model is
-            // about extent / |o| cells long along each offset.
-            let cells: Vec<i32> = principal
-                .iter()
-                .map(|o| {
-                    let len = motif_core::geometry::norm(*o);
-                    let d = normalize(*o).unwrap_or([1.0, 0.0, 0.0]);
-                    (extent_along(&mesh, d) / len).round() as i32
-                })
-                .collect();
+            // No shrink below one cell that the estimate did not itself ask for.
             s = nearest_steps(&principal, &cells, model_size, size, s);
             // An axis that no offset reaches (no offset has 5% of its length along it) keeps
             // its size: asking for another one there is refused, as --steps along a direction

@@ -23,23 +23,11 @@ use crate::{Error, Result};
 ///
 /// Used by every mesh writer and by other writers of the project (CSV, JSON).
 pub fn write_atomic(path: &Path, f: impl FnOnce(&mut dyn Write) -> io::Result<()>) -> Result<()> {
-    // What the path ends at as the kernel follows it: `/dev/stdout` on a pipe is a link to
-    // `/proc/self/fd/1`, whose link text `pipe:[N]` names no file, so following the links by
-    // hand reached nothing (a report given `--json /dev/stdout | cat` failed with "no such file").
-    if fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir()) {
+    let Some((resolved, dir)) = file_target(path)? else {
         return write_through(path, f);
-    }
-    let resolved = follow_links(path);
-    let path = resolved.as_path();
-    let name = path.file_name().ok_or_else(|| {
-        Error::io(path, io::Error::new(io::ErrorKind::InvalidInput, "the path names no file"))
-    })?;
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
     };
-    let (file, guard) =
-        create_temp(dir, &name.to_string_lossy()).map_err(|e| Error::io(path, temp_error(dir, e)))?;
+    let (path, dir) = (resolved.as_path(), dir.as_path());
+    let (file, guard) = create_temp_for(path, dir, path)?;
     // A file that is replaced keeps its permissions (a private 600 output stayed 600 with
     // `cp`, and became 644 here).
     if let Some(meta) = fs::metadata(path).ok().filter(|m| m.is_file()) {
@@ -166,9 +154,7 @@ pub fn commit_deferred() -> Result<()> {
         drop(live);
         forget_temp(&temp);
         match renamed {
-            Ok(()) => {
-                sync_dir(target.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new(".")))
-            }
+            Ok(()) => sync_dir(folder_of(&target)),
             Err(e) => {
                 let _ = fs::remove_file(&temp);
                 failure = Some(Error::io(&target, e));
@@ -195,24 +181,41 @@ pub fn discard_deferred() {
 /// touched. For a command's outputs before it starts its work, so that a long computation does
 /// not end in "permission denied".
 pub fn check_writable(path: &Path) -> Result<()> {
+    let Some((resolved, dir)) = file_target(path)? else { return Ok(()) };
+    // Dropping the file and its guard removes it.
+    create_temp_for(&resolved, &dir, path).map(drop)
+}
+
+/// The regular file a write to `path` replaces, with its folder: `None` for a device, FIFO or
+/// socket, which is written through. What the path ends at is asked of the kernel first:
+/// `/dev/stdout` on a pipe is a link to `/proc/self/fd/1`, whose link text `pipe:[N]` names no
+/// file, so following the links by hand reached nothing (a report given `--json /dev/stdout |
+/// cat` failed with "no such file").
+fn file_target(path: &Path) -> Result<Option<(PathBuf, PathBuf)>> {
     if fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir()) {
-        return Ok(());
+        return Ok(None);
     }
     let resolved = follow_links(path);
-    let target = resolved.as_path();
-    let name = target.file_name().ok_or_else(|| {
-        Error::io(path, io::Error::new(io::ErrorKind::InvalidInput, "the path names no file"))
-    })?;
-    let dir = match target.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    let (file, guard) =
-        create_temp(dir, &name.to_string_lossy()).map_err(|e| Error::io(path, temp_error(dir, e)))?;
-    drop(file);
-    // The guard removes the file.
-    drop(guard);
-    Ok(())
+    if resolved.file_name().is_none() {
+        return Err(Error::io(
+            &resolved,
+            io::Error::new(io::ErrorKind::InvalidInput, "the path names no file"),
+        ));
+    }
+    let dir = folder_of(&resolved).to_path_buf();
+    Ok(Some((resolved, dir)))
+}
+
+/// The folder a file is in, `.` for a bare name.
+fn folder_of(path: &Path) -> &Path {
+    path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."))
+}
+
+/// [`create_temp`] for the file `path` in `dir`, its failure said as the folder's and named by
+/// `named` (the path as the user gave it, or as resolved).
+fn create_temp_for(path: &Path, dir: &Path, named: &Path) -> Result<(File, TempGuard)> {
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    create_temp(dir, &name).map_err(|e| Error::io(named, temp_error(dir, e)))
 }
 
 impl Drop for TempGuard {
