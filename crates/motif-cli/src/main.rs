@@ -202,6 +202,7 @@ fn main() -> ExitCode {
     quiet_on_broken_pipe();
     remove_temporary_files_on_signals();
     let cli = parse_arguments();
+    output::set_quiet(cli.global.quiet);
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     if let Some(threads) = cli.global.threads.filter(|&t| t > MAX_THREADS_PER_CORE * cores) {
         eprintln!(

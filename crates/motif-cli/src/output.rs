@@ -457,12 +457,23 @@ pub fn write_json<T: Serialize>(dest: &Path, value: &T) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Writes the report when `--json` was given.
+/// Whether `--quiet` was given ([`set_quiet`]): [`maybe_json`] then says nothing.
+static QUIET: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Records `--quiet` for the messages of this module that have no `GlobalArgs` at hand.
+pub fn set_quiet(quiet: bool) {
+    QUIET.store(quiet, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// Writes the report when `--json` was given, and says where (`wrote FILE (report)`, on stderr,
+/// unless `--quiet`), as every command says where its other outputs went.
 pub fn maybe_json<T: Serialize>(dest: &Option<PathBuf>, value: &T) -> anyhow::Result<()> {
-    match dest {
-        Some(d) => write_json(d, value),
-        None => Ok(()),
+    let Some(d) = dest else { return Ok(()) };
+    write_json(d, value)?;
+    if d != Path::new("-") && !QUIET.load(std::sync::atomic::Ordering::Relaxed) {
+        eprintln!("wrote {} (report)", d.display());
     }
+    Ok(())
 }
 
 /// True when the JSON report goes to stdout, so human-readable text must not.

@@ -1776,14 +1776,23 @@ fn results_print_under_quiet_and_a_failing_stdout_is_an_error_not_a_panic() {
         assert!(o.status.success() && stdout(&o).contains(says), "{args:?}: {}{}", stdout(&o), stderr(&o));
         assert!(!stderr(&o).contains("wrote"), "{args:?}: {}", stderr(&o));
     }
-    // A JSON report written to a file leaves the text results on stdout.
-    for args in [
-        &["info", "s.obj", "--json", "i.json"][..],
-        &["symmetry", "check", "g.obj", "g.sym.json", "--json", "c.json"][..],
+    // A JSON report written to a file leaves the text results on stdout, and says where it
+    // went (it said nothing), except under -q.
+    for (args, report) in [
+        (&["info", "s.obj", "--json", "i.json"][..], "i.json"),
+        (&["symmetry", "check", "g.obj", "g.sym.json", "--json", "c.json"][..], "c.json"),
+        (&["offsets", "s.obj", "--json", "o.json"][..], "o.json"),
     ] {
         let o = motif(args, d.path());
         assert!(o.status.success() && !stdout(&o).is_empty(), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(&format!("wrote {report} (report)")), "{args:?}: {}", stderr(&o));
+        let quiet: Vec<&str> = std::iter::once("-q").chain(args.iter().copied()).collect();
+        let o = motif(&quiet, d.path());
+        assert!(o.status.success() && !stderr(&o).contains("wrote"), "{quiet:?}: {}", stderr(&o));
     }
+    // To stdout, the report is all there is (no note).
+    let o = motif(&["info", "s.obj", "--json", "-"], d.path());
+    assert!(o.status.success() && !stderr(&o).contains("wrote"), "{}", stderr(&o));
     if Path::new("/dev/full").exists() {
         let full = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
         let o = Command::new(env!("CARGO_BIN_EXE_motif"))

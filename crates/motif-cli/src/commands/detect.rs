@@ -220,9 +220,6 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     written.extend(a.labels.iter().map(|p| format!("{} (labelled points)", p.display())));
     written.extend(a.as_symmetry.iter().map(|p| format!("{} (motif_symmetry_v1)", p.display())));
     written.extend(a.plot.iter().map(|p| format!("{} (picture)", p.display())));
-    if !crate::output::json_on_stdout(&a.json.json) {
-        written.extend(a.json.json.iter().map(|p| format!("{} (report)", p.display())));
-    }
     maybe_json(
         &a.json.json,
         &serde_json::json!({
