@@ -282,9 +282,8 @@ struct Candidate {
     /// stands on one, else the principal ones.
     group_sizes: [f64; 3],
     group_frame: Mat4,
-    /// Whether `group_sizes` are measured on a support plane (height first).
-    standing: bool,
-    /// The support plane it stands on, by contact or hovering over it.
+    /// The support plane it stands on, by contact or hovering over it: `group_sizes` are then
+    /// measured on it (height first).
     plane: Option<u32>,
     /// Its box, grown to the plane when it hovers over one (section "Hidden feet").
     aabb: Aabb,
@@ -583,6 +582,11 @@ fn covered_by(explained: &[Aabb], b: &Aabb, share: f64) -> bool {
         .any(|e| e.intersection(b).is_some_and(|x| x.volume() > share * b.volume().max(f64::MIN_POSITIVE)))
 }
 
+/// The unit normal `n` of the plane through `c`, turned towards the side of `p`.
+fn towards(n: Point3, c: Point3, p: Point3) -> Point3 {
+    if dot(sub(p, c), n) >= 0.0 { n } else { scale(n, -1.0) }
+}
+
 /// Log sizes, each at least half a spacing.
 fn log_of(s: [f64; 3], eps: f64) -> [f64; 3] {
     s.map(|s| s.max(0.5 * eps).ln())
@@ -647,8 +651,7 @@ fn stand_hovering(
         // The padded box grown to take in the points' feet half a spacing past the plane (as
         // boxes are padded, so that the plane's points lie inside it, not on its face).
         let (centre, normal) = seg.planes[p as usize];
-        let up =
-            if dot(sub(centroid(&points), centre), normal) >= 0.0 { normal } else { scale(normal, -1.0) };
+        let up = towards(normal, centre, centroid(&points));
         let mut aabb = c.aabb;
         for &q in &points {
             let foot = sub(q, scale(up, dot(sub(q, centre), up) + 0.5 * eps));
@@ -664,7 +667,6 @@ fn stand_hovering(
         }
         c.group_frame = frame;
         c.group_sizes = sizes;
-        c.standing = true;
         c.plane = Some(p);
         c.aabb = aabb;
         hovering += 1;
@@ -693,7 +695,7 @@ fn hovers_over(
     eps: f64,
 ) -> bool {
     let mean = centroid(points);
-    let up = if dot(sub(mean, centre), normal) >= 0.0 { normal } else { scale(normal, -1.0) };
+    let up = towards(normal, centre, mean);
     let height = |q: Point3| dot(sub(q, centre), up);
     let lo = points.iter().map(|&q| height(q)).fold(f64::INFINITY, f64::min);
     if lo <= 0.0 || lo > HOVER_GAP * eps {
@@ -750,7 +752,7 @@ pub(crate) fn support_frame(points: &[Point3], c: Point3, n: Point3) -> Option<(
         return None;
     }
     let mean = centroid(points);
-    let e0 = if dot(sub(mean, c), n) >= 0.0 { n } else { scale(n, -1.0) };
+    let e0 = towards(n, c, mean);
     let (mut lo, mut hi) = (0.0f64, 0.0f64);
     for &p in points {
         let h = dot(sub(p, c), e0);
@@ -847,7 +849,6 @@ pub(crate) fn segment_classes(
             frame,
             group_sizes,
             group_frame,
-            standing: plane.is_some(),
             plane,
             aabb: b,
         });
@@ -886,7 +887,7 @@ pub(crate) fn segment_classes(
     };
     let sizes: Vec<[f64; 3]> = candidates.iter().map(|c| c.group_sizes).collect();
     let sorted: Vec<[f64; 3]> = sizes.iter().map(|&s| largest_first(s)).collect();
-    let standing: Vec<bool> = candidates.iter().map(|c| c.standing).collect();
+    let standing: Vec<bool> = candidates.iter().map(|c| c.plane.is_some()).collect();
     // Two candidates on support planes compare height with height; otherwise sizes compare
     // largest first, as the principal sizes are.
     let distance = |a: usize, b: usize| {
