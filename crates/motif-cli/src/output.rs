@@ -470,7 +470,7 @@ pub fn set_quiet(quiet: bool) {
 pub fn maybe_json<T: Serialize>(dest: &Option<PathBuf>, value: &T) -> anyhow::Result<()> {
     let Some(d) = dest else { return Ok(()) };
     write_json(d, value)?;
-    if d != Path::new("-") && !QUIET.load(std::sync::atomic::Ordering::Relaxed) {
+    if !json_on_stdout(dest) && !QUIET.load(std::sync::atomic::Ordering::Relaxed) {
         eprintln!("wrote {} (report)", d.display());
     }
     Ok(())
