@@ -2101,17 +2101,33 @@ fn an_interrupted_write_leaves_no_temporary_file() {
             .collect()
     };
     for (flag, number) in [("-INT", 2), ("-TERM", 15), ("-HUP", 1)] {
-        let child = Command::new(env!("CARGO_BIN_EXE_motif"))
-            .args(["-q", "convert", "s.ply", "big.ply", "--ply-encoding", "ascii", "--force"])
-            .current_dir(dir)
-            .stderr(std::process::Stdio::piped())
-            .spawn()
-            .unwrap();
-        let start = std::time::Instant::now();
-        while temps().is_empty() && start.elapsed().as_secs() < 60 {
-            std::thread::sleep(std::time::Duration::from_millis(2));
-        }
-        assert!(!temps().is_empty(), "{flag}: the write never started");
+        // The write takes a few tenths of a second; on a loaded machine it can start and end
+        // between two looks at the folder, so a run that finished unseen is started again.
+        let mut attempts = 0;
+        let child = loop {
+            attempts += 1;
+            let mut child = Command::new(env!("CARGO_BIN_EXE_motif"))
+                .args(["-q", "convert", "s.ply", "big.ply", "--ply-encoding", "ascii", "--force"])
+                .current_dir(dir)
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .unwrap();
+            let start = std::time::Instant::now();
+            let mut exited = false;
+            while temps().is_empty() && start.elapsed().as_secs() < 60 {
+                if child.try_wait().unwrap().is_some() {
+                    exited = true;
+                    break;
+                }
+                std::thread::sleep(std::time::Duration::from_millis(2));
+            }
+            if !exited && !temps().is_empty() {
+                break child;
+            }
+            let o = child.wait_with_output().unwrap();
+            assert_eq!(o.status.code(), Some(0), "{flag}: convert failed: {}", stderr(&o));
+            assert!(attempts < 10, "{flag}: in {attempts} runs the write was never seen under way");
+        };
         let _ = Command::new("kill").args([flag, &child.id().to_string()]).status();
         let o = child.wait_with_output().unwrap();
         if ignored_here(number) {
