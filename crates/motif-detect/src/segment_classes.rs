@@ -114,14 +114,15 @@
 //! column between the segment and the plane, probed every 2ε under an even sample of its
 //! points, holds fewer than [`HOVER_BLOCKERS`] points of other segments with enough features to
 //! be candidates or of other support planes (a block seen above a crate rests on the crate;
-//! fragments of the block itself, too small to be candidates, do not count). Of the planes it hovers over, it takes the one where
-//! it measures nearest to a candidate standing there by contact, and only when that distance is
-//! within the cut ([`crate::extent::ExtentOptions::segment_distance`]): the hidden part is
-//! supposed only when a block seen whole, standing on that plane, looks like its completion. A
-//! bin 0.6 m in front of the wall and 0.7 m above the ground hovers over both; measured on the
-//! wall it is 1.45 m deep, on the ground it is a bin. Its instance box, padded as the others
-//! are, is grown to take in its points' feet half a spacing past the plane, as the block stands
-//! there; a grown box that an instance of another class covers stays that instance's.
+//! fragments of the block itself, too small to be candidates, do not count). Of the planes it
+//! hovers over, it takes the one where it measures nearest to a candidate standing there by
+//! contact, and only when that distance is within the cut
+//! ([`crate::extent::ExtentOptions::segment_distance`]): the hidden part is supposed only when
+//! a block seen whole, standing on that plane, looks like its completion. A bin 0.6 m in front
+//! of the wall and 0.7 m above the ground hovers over both; measured on the wall it is 1.45 m
+//! deep, on the ground it is a bin. Its instance box, padded as the others are, is grown to take
+//! in its points' feet half a spacing past the plane, as the block stands there; a grown box
+//! that an instance of another class covers stays that instance's.
 //!
 //! Measured over seeds 1–12 (`motif example scene-street|scene-facade --difficulty D --seed S`,
 //! `motif detect --epsilon 0.0012 --seed S [--no-em]`, `motif eval --per-class`), without →
