@@ -750,6 +750,16 @@ pub struct BenchDetectArgs {
     /// the shared data for the thesis's "non-man-made" figures.
     #[arg(long, value_delimiter = ',', value_name = "FILES", value_parser = listed_path)]
     pub parts: Vec<PathBuf>,
+    /// Difficulty levels to run, comma-separated (all three by default); the table lists them from
+    /// easy to hard.
+    #[arg(
+        long,
+        value_enum,
+        value_delimiter = ',',
+        value_name = "LEVELS",
+        default_value = "easy,medium,hard"
+    )]
+    pub difficulty: Vec<DifficultyArg>,
     /// Scenes (seeds) per difficulty.
     #[arg(long, default_value_t = 2)]
     pub scenes: usize,

@@ -1238,10 +1238,24 @@ fn bench_detect_builds_its_scenes_from_given_parts() {
 #[test]
 fn bench_detect_gives_standard_errors_and_the_paired_lead_over_sc() {
     let d = tmp();
-    let args = ["bench", "detect", "--scenes", "2", "--points", "20000", "--no-icp", "--quiet", "--json"];
+    // Two of the three levels, named out of order: the table runs them from easy to hard.
+    let args = [
+        "bench",
+        "detect",
+        "--difficulty",
+        "hard,easy",
+        "--scenes",
+        "2",
+        "--points",
+        "20000",
+        "--no-icp",
+        "--quiet",
+        "--json",
+    ];
     let r = json_of(&motif(&args, d.path()));
     let rows = r["rows"].as_array().unwrap();
-    assert_eq!(rows.len(), 6, "{r}");
+    let levels: Vec<&str> = rows.iter().map(|x| x["difficulty"].as_str().unwrap()).collect();
+    assert_eq!(levels, ["easy", "easy", "hard", "hard"], "{r}");
     let scene_f = |row: &serde_json::Value| -> Vec<f64> {
         row["scene_f"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect()
     };
@@ -1255,7 +1269,7 @@ fn bench_detect_gives_standard_errors_and_the_paired_lead_over_sc() {
         assert!((row["f_se"].as_f64().unwrap() - se).abs() < 1e-12, "{row}");
     }
     let leads = r["em_lead"].as_array().unwrap();
-    assert_eq!(leads.len(), 3, "{r}");
+    assert_eq!(leads.len(), 2, "{r}");
     for lead in leads {
         let level = lead["difficulty"].as_str().unwrap();
         let of = |method: &str| {
@@ -1316,8 +1330,8 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
     assert!(o.status.success(), "{}", stderr(&o));
     // The extent stage runs by default, and its options and figures are in the report (a
     // coarser ε: at 0.0012 this sparse scan yields no class to regroup); `--regroup none` turns
-    // it off.
-    for (mode, out) in [(None, "r2"), (Some("extent"), "r3"), (Some("none"), "r4")] {
+    // it off. (`--regroup extent`, the default spelt out, is given to run r11 below.)
+    for (mode, out) in [(None, "r2"), (Some("none"), "r4")] {
         let (res, rep) = (format!("{out}.json"), format!("{out}.rep.json"));
         let mut args = vec!["detect", "s.ply", "-o", &res, "--epsilon", "0.002", "--json", &rep];
         if let Some(m) = mode {
@@ -1377,6 +1391,8 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
         "--aligned-grouping",
         "reassign",
         "--shape-split-per-class",
+        "--repeated-segments",
+        "none",
         "-o",
         "r9.json",
         "--json",
@@ -1418,6 +1434,10 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
         "--no-shape-split",
         "--no-aligned-mask",
         "--no-segment-support",
+        "--regroup",
+        "extent",
+        "--repeated-segments",
+        "sizes",
         "-o",
         "r11.json",
         "--json",
@@ -1436,6 +1456,7 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
     // Segments standing on a support plane are measured on it unless `--no-segment-support`.
     assert_eq!(def["options"]["extent"]["segment_support"], true);
     assert_eq!(nc["options"]["extent"]["segment_support"], false);
+    assert_eq!(nc["options"]["extent"]["regroup"], "extent");
     for key in ["incoherent_classes", "outliers"] {
         assert!(read("r2.rep.json")["report"]["extent"]["content"][key].is_u64(), "{key}");
     }
@@ -1464,35 +1485,17 @@ fn detect_on_a_generated_scene_writes_result_labels_and_annotation() {
     assert!(!o.status.success() && stderr(&o).contains("sideways"), "{}", stderr(&o));
     assert!(!dir.path().join("r5.json").exists());
     // Classes of repeated segments (a step of the extent stage) are on by default, in the
-    // options and the report; `--repeated-segments sizes` leaves out the groups by shape and
-    // `none` turns them off.
-    for (mode, want) in [(None, "classes"), (Some("sizes"), "sizes"), (Some("none"), "none")] {
-        let mut args = vec![
-            "detect",
-            "s.ply",
-            "-o",
-            "r6.json",
-            "--epsilon",
-            "0.002",
-            "--json",
-            "r6.rep.json",
-            "--force",
-        ];
-        if let Some(m) = mode {
-            args.extend(["--repeated-segments", m]);
-        }
-        let o = motif(&args, dir.path());
-        assert!(o.status.success(), "{}", stderr(&o));
-        let rep: serde_json::Value =
-            serde_json::from_slice(&std::fs::read(dir.path().join("r6.rep.json")).unwrap()).unwrap();
+    // options and the report; `--repeated-segments sizes` (run r11) leaves out the groups by
+    // shape and `none` (run r9) turns them off.
+    for (rep, want) in [(def, "classes"), (nc, "sizes"), (re, "none")] {
         assert_eq!(rep["options"]["extent"]["repeated_segments"], want);
         let found = &rep["report"]["extent"]["segment_classes"];
         assert!(found["candidates"].is_u64() && found["classes"].is_u64(), "{found}");
         assert!(found["shape_candidates"].is_u64() && found["shape_classes"].is_u64(), "{found}");
-        if mode == Some("none") {
+        if want == "none" {
             assert_eq!(found["candidates"], 0, "{found}");
         }
-        if mode.is_some() {
+        if want != "classes" {
             assert_eq!(found["shape_classes"], 0, "{found}");
         }
     }

@@ -21,7 +21,9 @@ use motif_detect::{
 };
 use serde::Serialize;
 
-use crate::cli::{AlignedGroupingArg, BenchDetectArgs, GlobalArgs, RegroupArg, RepeatedSegmentsArg};
+use crate::cli::{
+    AlignedGroupingArg, BenchDetectArgs, DifficultyArg, GlobalArgs, RegroupArg, RepeatedSegmentsArg,
+};
 use crate::output::{bad_input, check_outputs, maybe_json};
 use crate::progress::Bar;
 
@@ -135,9 +137,13 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     let mut leads = Vec::new();
     let mut stages: Vec<(&'static str, Stages)> = Vec::new();
     let mut curves = Vec::new();
-    for (difficulty, dname) in
-        [(Difficulty::Easy, "easy"), (Difficulty::Medium, "medium"), (Difficulty::Hard, "hard")]
-    {
+    // The levels asked for, each once, from easy to hard (the table's rows).
+    let levels = [
+        (DifficultyArg::Easy, Difficulty::Easy, "easy"),
+        (DifficultyArg::Medium, Difficulty::Medium, "medium"),
+        (DifficultyArg::Hard, Difficulty::Hard, "hard"),
+    ];
+    for (_, difficulty, dname) in levels.into_iter().filter(|(l, ..)| a.difficulty.contains(l)) {
         let mut results: Vec<Vec<(DetectionResult, DetectionResult, f64)>> = vec![Vec::new(); 3];
         let mut st = Stages::default();
         for k in 0..a.scenes {
