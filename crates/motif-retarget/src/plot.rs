@@ -6,7 +6,8 @@
 //!
 //! The offset picture shows why the principal offsets were chosen:
 //! - three projections of the 3-D offset histogram (onto the XY, XZ and YZ planes; the bin masses
-//!   summed along the dropped axis, log colour scale), drawn point-symmetric (each bin also at
+//!   summed along the dropped axis, log colour scale shared by the three and shown as a colour
+//!   bar beside the text), drawn point-symmetric (each bin also at
 //!   `−v`, since `v` and `−v` are one repetition), with the dominant offsets circled (accepted ones
 //!   in blue, rejected ones grey) and the principal offsets as arrows from the origin labelled
 //!   `p0 …` (numbered by model axis, as `--steps` counts them) and their support; when every
@@ -158,7 +159,10 @@ pub fn plot_offsets(analysis: &OffsetAnalysis, title: &str, path: &Path) -> Resu
         // that line twice and a dot, so one profile along it is drawn instead.
         if let Some(a) = line {
             draw_profile(&top, analysis, a, extent, path)?;
-            return draw_summary(&bottom, analysis, title, path);
+            let (bars, text) = bottom.split_horizontally(820);
+            draw_bars(&bars, analysis, path)?;
+            // The profile's heights are its counts: no colour bar.
+            return draw_text(&text, analysis, title, None, path);
         }
         // Offsets in one plane (a shelf, a facade): the two projections across the plane would
         // each show a line, so the plane alone is drawn, large, with the bars and the text beside.
@@ -174,19 +178,26 @@ pub fn plot_offsets(analysis: &OffsetAnalysis, title: &str, path: &Path) -> Resu
                 "offsets on the {}{} plane ({within} within a bin of it; bin {}, log colour)",
                 name[a], name[b], analysis.bin_size
             );
-            draw_projection(&square, analysis, a, b, &caption, extent, None, path)?;
+            let cells = projected_cells(analysis, a, b);
+            let heat_max = cells.values().copied().fold(1.0, f64::max);
+            draw_projection(&square, analysis, a, b, &cells, heat_max, &caption, extent, None, path)?;
             let (bars, text) = right.split_vertically(400);
             draw_bars(&bars, analysis, path)?;
-            return draw_text(&text, analysis, title, path);
+            return draw_text(&text, analysis, title, Some(heat_max), path);
         }
         let panels = top.split_evenly((1, 3));
         let axes = [(0usize, 1usize, "XY"), (0, 2, "XZ"), (1, 2, "YZ")];
-        for (panel, &(a, b, name)) in panels.iter().zip(axes.iter()) {
+        // One colour scale for the three, so that a colour reads the same count in each.
+        let cells = axes.map(|(a, b, _)| projected_cells(analysis, a, b));
+        let heat_max = cells.iter().flat_map(|c| c.values().copied()).fold(1.0, f64::max);
+        for ((panel, &(a, b, name)), cells) in panels.iter().zip(axes.iter()).zip(&cells) {
             let caption = format!("offsets projected on {name} (bin {}, log colour)", analysis.bin_size);
             let tau = analysis.parameters.tau;
-            draw_projection(panel, analysis, a, b, &caption, extent, Some(tau), path)?;
+            draw_projection(panel, analysis, a, b, cells, heat_max, &caption, extent, Some(tau), path)?;
         }
-        draw_summary(&bottom, analysis, title, path)
+        let (bars, text) = bottom.split_horizontally(820);
+        draw_bars(&bars, analysis, path)?;
+        draw_text(&text, analysis, title, Some(heat_max), path)
     })
 }
 
@@ -401,21 +412,14 @@ fn draw_profile(
     Ok(())
 }
 
-#[allow(clippy::too_many_arguments)]
-fn draw_projection(
-    area: &DrawingArea<TextFix<BitMapBackend<'_>>, Shift>,
+/// The (point-symmetric) histogram projected on the plane of axes `a` and `b`: offsets per
+/// projected bin, summed along the third axis.
+fn projected_cells(
     analysis: &OffsetAnalysis,
     a: usize,
     b: usize,
-    caption: &str,
-    extent: f64,
-    ring_slab: Option<f64>,
-    path: &Path,
-) -> Result<()> {
-    let axis = ["x", "y", "z"];
-    let h = analysis.bin_size;
-    // Project the (point-symmetric) histogram.
-    let mut cells: std::collections::HashMap<(i32, i32), f64> = std::collections::HashMap::new();
+) -> std::collections::HashMap<(i32, i32), f64> {
+    let mut cells = std::collections::HashMap::new();
     for bin in &analysis.histogram {
         let (i, j) = (bin.index[a], bin.index[b]);
         *cells.entry((i, j)).or_default() += bin.count as f64;
@@ -423,7 +427,81 @@ fn draw_projection(
             *cells.entry((-i, -j)).or_default() += bin.count as f64;
         }
     }
-    let max = cells.values().copied().fold(1.0, f64::max);
+    cells
+}
+
+/// Where `count` falls on the heat scale whose darkest colour is `max` offsets: log(1 + count) /
+/// log(1 + max), so that one offset is already visible and the peaks do not wash out the rest.
+fn heat_level(count: f64, max: f64) -> f64 {
+    (1.0 + count).ln() / (1.0 + max.max(1.0)).ln()
+}
+
+/// A horizontal colour bar of the heat scale whose top is `max` offsets per bin, `width` pixels
+/// wide with its top-left corner at `at`, ticks at 1, 10, 100, … and at `max`, and a caption.
+fn draw_colour_bar(
+    area: &DrawingArea<TextFix<BitMapBackend<'_>>, Shift>,
+    max: f64,
+    at: (i32, i32),
+    width: i32,
+    path: &Path,
+) -> Result<()> {
+    let (x0, y0) = at;
+    let height = 12;
+    let grey = RGBColor(80, 80, 80);
+    // Pixel column k shows the colour of the count whose level is k / (width − 1).
+    for k in 0..width {
+        let t = k as f64 / (width - 1).max(1) as f64;
+        area.draw(&Rectangle::new([(x0 + k, y0), (x0 + k + 1, y0 + height)], heat(t).filled()))
+            .map_err(|e| plot_err(path, e))?;
+    }
+    // The frame one pixel outside the colours, so that both ends' colours stay visible.
+    area.draw(&Rectangle::new([(x0 - 1, y0 - 1), (x0 + width, y0 + height)], grey.stroke_width(1)))
+        .map_err(|e| plot_err(path, e))?;
+    let x_of = |count: f64| x0 + (heat_level(count, max) * (width - 1) as f64).round() as i32;
+    let label = |count: f64| format!("{count:.0}");
+    let label_width = |count: f64| motif_core::plotting::text_width(&label(count), 12.0, FontStyle::Normal);
+    let mut ticks: Vec<f64> =
+        std::iter::successors(Some(1.0), |t| Some(t * 10.0)).take_while(|&t| t < max).collect();
+    // The top's own tick, in place of the last power of ten's when their labels would touch.
+    if let Some(&t) = ticks.last()
+        && f64::from(x_of(max) - x_of(t)) < 0.5 * (label_width(t) + label_width(max)) + 8.0
+    {
+        ticks.pop();
+    }
+    ticks.push(max);
+    let font = (FONT, 12).into_font().color(&grey);
+    for t in ticks {
+        let x = x_of(t);
+        area.draw(&PathElement::new(vec![(x, y0 + height), (x, y0 + height + 4)], grey.stroke_width(1)))
+            .map_err(|e| plot_err(path, e))?;
+        let w = label_width(t).round() as i32;
+        area.draw(&Text::new(label(t), (x - w / 2, y0 + height + 6), font.clone()))
+            .map_err(|e| plot_err(path, e))?;
+    }
+    area.draw(&Text::new(
+        "offsets per projected bin (log colour scale)".to_string(),
+        (x0 + width + 12, y0 - 1),
+        font,
+    ))
+    .map_err(|e| plot_err(path, e))?;
+    Ok(())
+}
+
+#[allow(clippy::too_many_arguments)]
+fn draw_projection(
+    area: &DrawingArea<TextFix<BitMapBackend<'_>>, Shift>,
+    analysis: &OffsetAnalysis,
+    a: usize,
+    b: usize,
+    cells: &std::collections::HashMap<(i32, i32), f64>,
+    heat_max: f64,
+    caption: &str,
+    extent: f64,
+    ring_slab: Option<f64>,
+    path: &Path,
+) -> Result<()> {
+    let axis = ["x", "y", "z"];
+    let h = analysis.bin_size;
     let mut chart = ChartBuilder::on(area)
         .caption(caption, (FONT, 18).into_font())
         .margin(12)
@@ -440,10 +518,9 @@ fn draw_projection(
         .light_line_style(RGBColor(235, 235, 235))
         .draw()
         .map_err(|e| plot_err(path, e))?;
-    let log_max = (1.0 + max).ln();
     chart
         .draw_series(cells.iter().map(|(&(i, j), &m)| {
-            let t = (1.0 + m).ln() / log_max;
+            let t = heat_level(m, heat_max);
             let (x, y) = (i as f64 * h, j as f64 * h);
             Rectangle::new([(x - 0.5 * h, y - 0.5 * h), (x + 0.5 * h, y + 0.5 * h)], heat(t).filled())
         }))
@@ -560,19 +637,6 @@ fn draw_projection(
     Ok(())
 }
 
-/// The bar chart of the dominant offsets' support (left) and the verdict with the principal
-/// offsets in model units (right), side by side in `area`.
-fn draw_summary(
-    area: &DrawingArea<TextFix<BitMapBackend<'_>>, Shift>,
-    analysis: &OffsetAnalysis,
-    title: &str,
-    path: &Path,
-) -> Result<()> {
-    let (bars, text) = area.split_horizontally(820);
-    draw_bars(&bars, analysis, path)?;
-    draw_text(&text, analysis, title, path)
-}
-
 /// The bar chart of the dominant offsets' support, principal ones highlighted and rejected ones
 /// marked with the reason.
 fn draw_bars(
@@ -666,6 +730,7 @@ fn draw_text(
     text: &DrawingArea<TextFix<BitMapBackend<'_>>, Shift>,
     analysis: &OffsetAnalysis,
     title: &str,
+    heat_max: Option<f64>,
     path: &Path,
 ) -> Result<()> {
     let total = analysis.counts.offsets.max(1) as f64;
@@ -799,6 +864,9 @@ fn draw_text(
     for (s, size, colour) in lines {
         text.draw(&Text::new(s, (10, y), font(size).color(&colour))).map_err(|e| plot_err(path, e))?;
         y += size as i32 + 7;
+    }
+    if let Some(max) = heat_max {
+        draw_colour_bar(text, max, (10, y + 6), 260, path)?;
     }
     Ok(())
 }

@@ -208,13 +208,17 @@ fn the_offset_picture_is_written() {
     motif_retarget::plot::plot_offsets(&a, "shelf_sheared", &path).expect("plot");
     let bytes = std::fs::read(&path).expect("png written");
     assert!(bytes.starts_with(b"\x89PNG"));
-    let _ = std::fs::remove_file(&path);
     // A shelf's offsets span its plane (XY), which the picture then draws alone, large (1500 ×
     // 820); a fence's lie along its length (x), drawn as one profile (1500 × 1000).
     let height = |bytes: &[u8]| u32::from_be_bytes([bytes[20], bytes[21], bytes[22], bytes[23]]);
     assert_eq!(motif_retarget::plot::line_axis(&a), None);
     assert_eq!(motif_retarget::plot::plane_axes(&a), Some((0, 1)));
     assert_eq!(height(&bytes), 820);
+    // The heat scale's colour bar sits under the text, right of the plot: its palest and its
+    // darkest colours are there.
+    let (pale, dark) = ([255, 245, 200], [60, 10, 70]);
+    assert!(has_colour(&path, [800, 400, 1500, 820], pale), "no colour bar beside the plane");
+    assert!(has_colour(&path, [800, 400, 1500, 820], dark), "no colour bar beside the plane");
     let fence = analyze(&generate("fence", 0).expect("example").mesh);
     assert_eq!(motif_retarget::plot::line_axis(&fence), Some(0));
     assert_eq!(motif_retarget::plot::plane_axes(&fence), None);
@@ -222,6 +226,8 @@ fn the_offset_picture_is_written() {
     let bytes = std::fs::read(&path).expect("png written");
     assert!(bytes.starts_with(b"\x89PNG"));
     assert_eq!(height(&bytes), 1000);
+    // The profile's heights are its counts: no colour bar beside the text.
+    assert!(!has_colour(&path, [820, 560, 1500, 1000], dark), "a colour bar beside the profile");
     // 5% of the offsets three bins off the shelf's plane: no longer a plane, three projections.
     let mut thick = a.clone();
     let total: u32 = thick.histogram.iter().map(|b| b.count).sum();
@@ -230,7 +236,24 @@ fn the_offset_picture_is_written() {
     assert_eq!(motif_retarget::plot::line_axis(&thick), None);
     motif_retarget::plot::plot_offsets(&thick, "thick", &path).expect("plot");
     assert_eq!(height(&std::fs::read(&path).expect("png written")), 1000);
+    // One colour bar for the three projections, beside the text under them.
+    assert!(has_colour(&path, [820, 560, 1500, 1000], dark), "no colour bar under the projections");
     let _ = std::fs::remove_file(&path);
+}
+
+/// Whether the RGB PNG at `path` has a pixel of exactly `colour` in the pixel box `[x0, y0, x1,
+/// y1)`.
+fn has_colour(path: &std::path::Path, [x0, y0, x1, y1]: [usize; 4], colour: [u8; 3]) -> bool {
+    let mut reader = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()))
+        .read_info()
+        .expect("a PNG");
+    let mut buf = vec![0; reader.output_buffer_size().expect("a size")];
+    let info = reader.next_frame(&mut buf).expect("a frame");
+    assert_eq!(info.color_type, png::ColorType::Rgb);
+    let width = info.width as usize;
+    (y0..y1.min(info.height as usize))
+        .flat_map(|y| (x0..x1.min(width)).map(move |x| (x, y)))
+        .any(|(x, y)| buf[3 * (y * width + x)..3 * (y * width + x) + 3] == colour)
 }
 
 #[test]
