@@ -1256,6 +1256,7 @@ fn bench_detect_gives_standard_errors_and_the_paired_lead_over_sc() {
     let rows = r["rows"].as_array().unwrap();
     let levels: Vec<&str> = rows.iter().map(|x| x["difficulty"].as_str().unwrap()).collect();
     assert_eq!(levels, ["easy", "easy", "hard", "hard"], "{r}");
+    assert_eq!(r["levels"], serde_json::json!(["easy", "hard"]), "{r}");
     let scene_f = |row: &serde_json::Value| -> Vec<f64> {
         row["scene_f"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect()
     };

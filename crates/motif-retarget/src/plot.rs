@@ -7,13 +7,13 @@
 //! The offset picture shows why the principal offsets were chosen:
 //! - three projections of the 3-D offset histogram (onto the XY, XZ and YZ planes; the bin masses
 //!   summed along the dropped axis, log colour scale shared by the three and shown as a colour
-//!   bar beside the text), drawn point-symmetric (each bin also at
-//!   `−v`, since `v` and `−v` are one repetition), with the dominant offsets circled (accepted ones
-//!   in blue, rejected ones grey) and the principal offsets as arrows from the origin labelled
-//!   `p0 …` (numbered by model axis, as `--steps` counts them) and their support; when every
-//!   offset lies along one axis (a fence), one profile of the counts along it instead
-//!   ([`line_axis`]), and when they lie in one axis plane (a shelf, a facade), that plane's
-//!   projection alone, large, with the bar chart and text beside it ([`plane_axes`]);
+//!   bar beside the text), drawn point-symmetric (each bin also at `−v`, since `v` and `−v` are
+//!   one repetition), with the dominant offsets circled (accepted ones in blue, rejected ones
+//!   grey) and the principal offsets as arrows from the origin labelled `p0 …` (numbered by
+//!   model axis, as `--steps` counts them) and their support; when every offset lies along one
+//!   axis (a fence), one profile of the counts along it instead ([`line_axis`]), and when they
+//!   lie in one axis plane (a shelf, a facade), that plane's projection alone, large, with the
+//!   bar chart and text beside it ([`plane_axes`]);
 //! - a bar chart of the dominant offsets' support, principal ones highlighted, with the verdict and
 //!   the principal offsets in model units below.
 
@@ -159,10 +159,8 @@ pub fn plot_offsets(analysis: &OffsetAnalysis, title: &str, path: &Path) -> Resu
         // that line twice and a dot, so one profile along it is drawn instead.
         if let Some(a) = line {
             draw_profile(&top, analysis, a, extent, path)?;
-            let (bars, text) = bottom.split_horizontally(820);
-            draw_bars(&bars, analysis, path)?;
             // The profile's heights are its counts: no colour bar.
-            return draw_text(&text, analysis, title, None, path);
+            return draw_summary(&bottom, analysis, title, None, path);
         }
         // Offsets in one plane (a shelf, a facade): the two projections across the plane would
         // each show a line, so the plane alone is drawn, large, with the bars and the text beside.
@@ -195,9 +193,7 @@ pub fn plot_offsets(analysis: &OffsetAnalysis, title: &str, path: &Path) -> Resu
             let tau = analysis.parameters.tau;
             draw_projection(panel, analysis, a, b, cells, heat_max, &caption, extent, Some(tau), path)?;
         }
-        let (bars, text) = bottom.split_horizontally(820);
-        draw_bars(&bars, analysis, path)?;
-        draw_text(&text, analysis, title, Some(heat_max), path)
+        draw_summary(&bottom, analysis, title, Some(heat_max), path)
     })
 }
 
@@ -635,6 +631,21 @@ fn draw_projection(
             .map_err(|e| plot_err(path, e))?;
     }
     Ok(())
+}
+
+/// The bar chart of the dominant offsets' support (left) and the verdict with the principal
+/// offsets in model units and, given the heat scale's top, its colour bar (right), side by side
+/// in `area`.
+fn draw_summary(
+    area: &DrawingArea<TextFix<BitMapBackend<'_>>, Shift>,
+    analysis: &OffsetAnalysis,
+    title: &str,
+    heat_max: Option<f64>,
+    path: &Path,
+) -> Result<()> {
+    let (bars, text) = area.split_horizontally(820);
+    draw_bars(&bars, analysis, path)?;
+    draw_text(&text, analysis, title, heat_max, path)
 }
 
 /// The bar chart of the dominant offsets' support, principal ones highlighted and rejected ones

@@ -143,7 +143,8 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         (DifficultyArg::Medium, Difficulty::Medium, "medium"),
         (DifficultyArg::Hard, Difficulty::Hard, "hard"),
     ];
-    for (_, difficulty, dname) in levels.into_iter().filter(|(l, ..)| a.difficulty.contains(l)) {
+    let levels: Vec<_> = levels.into_iter().filter(|(l, ..)| a.difficulty.contains(l)).collect();
+    for &(_, difficulty, dname) in &levels {
         let mut results: Vec<Vec<(DetectionResult, DetectionResult, f64)>> = vec![Vec::new(); 3];
         let mut st = Stages::default();
         for k in 0..a.scenes {
@@ -246,26 +247,34 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         }
     }
     if !crate::output::json_on_stdout(&a.json.json) {
+        // The extent stage's steps only when it runs: under `--regroup none` they do nothing.
+        let extent = if a.regroup == RegroupArg::Extent {
+            format!(
+                "regroup by extent, repeated segments {}, content {}, aligned {}",
+                match a.repeated_segments {
+                    RepeatedSegmentsArg::Classes => "by size and shape",
+                    RepeatedSegmentsArg::Sizes => "by size",
+                    RepeatedSegmentsArg::None => "off",
+                },
+                if a.no_content { "off" } else { "on" },
+                match (a.no_aligned, a.aligned_grouping) {
+                    (true, _) => "off",
+                    (false, AlignedGroupingArg::Communities) => "by communities",
+                    (false, AlignedGroupingArg::Reassign) => "by reassignment",
+                },
+            )
+        } else {
+            "regroup off (the thesis's output)".to_string()
+        };
         println!(
-            "{} × {} scenes of {} points, ε = {} × diagonal, minimum support {}, peak share {}, regroup {}, repeated segments {}, content {}, aligned {}, τ = {}",
+            "{} × {} scene{} of {} points, ε = {} × diagonal, minimum support {}, peak share {}, {extent}, τ = {}",
             a.kind,
             a.scenes,
+            if a.scenes == 1 { "" } else { "s" },
             a.points,
             a.epsilon,
             a.min_support,
             a.peak_share,
-            if a.regroup == RegroupArg::Extent { "by extent" } else { "off" },
-            match a.repeated_segments {
-                RepeatedSegmentsArg::Classes => "by size and shape",
-                RepeatedSegmentsArg::Sizes => "by size",
-                RepeatedSegmentsArg::None => "off",
-            },
-            if a.no_content { "off" } else { "on" },
-            match (a.no_aligned, a.aligned_grouping) {
-                (true, _) => "off",
-                (false, AlignedGroupingArg::Communities) => "by communities",
-                (false, AlignedGroupingArg::Reassign) => "by reassignment",
-            },
             eval.tau
         );
         if !a.parts.is_empty() {
@@ -335,7 +344,7 @@ pub fn run(a: BenchDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         &a.json.json,
         &serde_json::json!({ "rows": rows, "em_lead": leads, "stages": stages, "epsilon": a.epsilon,
             "min_support": a.min_support, "peak_share": a.peak_share, "points": a.points,
-            "kind": a.kind, "parts": a.parts,
+            "kind": a.kind, "parts": a.parts, "levels": levels.iter().map(|l| l.2).collect::<Vec<_>>(),
             "regroup": a.regroup == RegroupArg::Extent,
             "repeated_segments": match a.repeated_segments {
                 RepeatedSegmentsArg::Classes => "classes",
