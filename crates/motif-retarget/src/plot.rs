@@ -432,17 +432,23 @@ fn heat_level(count: f64, max: f64) -> f64 {
     (1.0 + count).ln() / (1.0 + max.max(1.0)).ln()
 }
 
-/// A horizontal colour bar of the heat scale whose top is `max` offsets per bin, `width` pixels
-/// wide with its top-left corner at `at`, ticks at 1, 10, 100, … and at `max`, and a caption.
+/// Width of the colour bar, in pixels.
+const COLOUR_BAR_WIDTH: i32 = 260;
+/// Height of the colour bar with its tick labels, in pixels.
+const COLOUR_BAR_HEIGHT: i32 = 36;
+
+/// A horizontal colour bar of the heat scale whose top is `max` offsets per bin, with its
+/// top-left corner at `at`, ticks at 1, 10, 100, … and at `max`, and a caption on its right or,
+/// with `caption_above`, above it.
 fn draw_colour_bar(
     area: &DrawingArea<TextFix<BitMapBackend<'_>>, Shift>,
     max: f64,
     at: (i32, i32),
-    width: i32,
+    caption_above: bool,
     path: &Path,
 ) -> Result<()> {
     let (x0, y0) = at;
-    let height = 12;
+    let (width, height) = (COLOUR_BAR_WIDTH, 12);
     let grey = RGBColor(80, 80, 80);
     // Pixel column k shows the colour of the count whose level is k / (width − 1).
     for k in 0..width {
@@ -474,12 +480,9 @@ fn draw_colour_bar(
         area.draw(&Text::new(label(t), (x - w / 2, y0 + height + 6), font.clone()))
             .map_err(|e| plot_err(path, e))?;
     }
-    area.draw(&Text::new(
-        "offsets per projected bin (log colour scale)".to_string(),
-        (x0 + width + 12, y0 - 1),
-        font,
-    ))
-    .map_err(|e| plot_err(path, e))?;
+    let caption_at = if caption_above { (x0, y0 - 17) } else { (x0 + width + 12, y0 - 1) };
+    area.draw(&Text::new("offsets per projected bin (log colour scale)".to_string(), caption_at, font))
+        .map_err(|e| plot_err(path, e))?;
     Ok(())
 }
 
@@ -877,7 +880,16 @@ fn draw_text(
         y += size as i32 + 7;
     }
     if let Some(max) = heat_max {
-        draw_colour_bar(text, max, (10, y + 6), 260, path)?;
+        // Under the text, captioned on its right; when the text leaves no room there (three
+        // principal offsets with notes under a wrapped verdict), at the top right under the
+        // title, captioned above, where the verdict and the counts are short.
+        let (w, h) = text.dim_in_pixel();
+        let (w, h) = (w as i32, h as i32);
+        if y + 6 + COLOUR_BAR_HEIGHT <= h {
+            draw_colour_bar(text, max, (10, y + 6), false, path)?;
+        } else {
+            draw_colour_bar(text, max, (w - COLOUR_BAR_WIDTH - 20, 62), true, path)?;
+        }
     }
     Ok(())
 }
