@@ -213,30 +213,36 @@ fn no_repetition(analysis: &OffsetAnalysis) -> bool {
 }
 
 /// The dominant offsets' rings, at `at(d, ±1)` (both signs: `v` and `−v` are one repetition),
-/// and the numbers of the first eight beside their positive ring (`label_at` of its position).
+/// and each one's number (as the bar chart numbers it) beside its positive ring (`label_at` of
+/// its position), unless a stronger peak's number is already there: `apart(p, q)` says whether
+/// numbers at `p` and `q` leave each other readable. (Only the first eight were numbered
+/// before, and the bars past 7 had no ring to point to.)
 fn peak_marks(
     analysis: &OffsetAnalysis,
     at: impl Fn(&crate::offsets::DominantOffset, f64) -> (f64, f64),
     label_at: impl Fn((f64, f64)) -> (f64, f64),
     keep: impl Fn(&crate::offsets::DominantOffset) -> bool,
+    apart: impl Fn((f64, f64), (f64, f64)) -> bool,
 ) -> (Vec<Circle<(f64, f64), i32>>, Vec<Text<'static, (f64, f64), String>>) {
     let mut rings = Vec::new();
     let mut labels = Vec::new();
+    let mut placed: Vec<(f64, f64)> = Vec::new();
     for (k, d) in analysis.dominant.iter().enumerate().filter(|(_, d)| keep(d)) {
         let colour = dominant_colour(analysis, d.status);
         for s in [1.0, -1.0] {
             rings.push(Circle::new(at(d, s), 9, colour.stroke_width(2)));
         }
-        if k < 8 {
-            labels.push(Text::new(
-                format!("{k}"),
-                label_at(at(d, 1.0)),
-                (FONT, 12).into_font().color(&colour),
-            ));
+        let p = label_at(at(d, 1.0));
+        if placed.iter().all(|&q| apart(p, q)) {
+            placed.push(p);
+            labels.push(Text::new(format!("{k}"), p, (FONT, 12).into_font().color(&colour)));
         }
     }
     (rings, labels)
 }
+
+/// Room a peak's number needs, in pixels: two digits of 12-pixel text, with a margin.
+const PEAK_LABEL_PX: (f64, f64) = (18.0, 13.0);
 
 /// A principal offset's shaft: solid, or dashed when the verdict rejected it (solid is one dash
 /// longer than any picture).
@@ -376,11 +382,16 @@ fn draw_profile(
         }))
         .map_err(|e| plot_err(path, e))?;
     // Histogram peaks at their support's height, both signs.
+    // Pixels to chart units: x linear, y logarithmic from 0.8 to `top`.
+    let (pw, ph) = chart.plotting_area().dim_in_pixel();
+    let x_gap = PEAK_LABEL_PX.0 * 2.0 * extent / pw.max(1) as f64;
+    let log_gap = PEAK_LABEL_PX.1 * (top / 0.8).ln() / ph.max(1) as f64;
     let (rings, labels) = peak_marks(
         analysis,
         |d, s| (s * d.offset[a], (d.peak.support as f64).max(1.0)),
         |p| (p.0 + 0.015 * extent, p.1 * 1.35),
         |_| true,
+        |p, q| (p.0 - q.0).abs() >= x_gap || (p.1 / q.1).ln().abs() >= log_gap,
     );
     chart.draw_series(rings).map_err(|e| plot_err(path, e))?;
     chart.draw_series(labels).map_err(|e| plot_err(path, e))?;
@@ -536,6 +547,11 @@ fn draw_projection(
         .draw_series(std::iter::once(PathElement::new(circle, RGBColor(150, 150, 150).stroke_width(1))))
         .map_err(|e| plot_err(path, e))?;
     // Dominant offsets.
+    let (pw, ph) = chart.plotting_area().dim_in_pixel();
+    let gap = (
+        PEAK_LABEL_PX.0 * 2.0 * extent / pw.max(1) as f64,
+        PEAK_LABEL_PX.1 * 2.0 * extent / ph.max(1) as f64,
+    );
     let (rings, labels) = peak_marks(
         analysis,
         |d, s| (s * d.offset[a], s * d.offset[b]),
@@ -543,6 +559,7 @@ fn draw_projection(
         // In the three projections, a peak is circled in those whose plane it lies near: the
         // heat sink's XZ and YZ views showed a chain of 25 rings, the XY view's peaks projected.
         |d| ring_slab.is_none_or(|slab| d.offset[3 - a - b].abs() <= slab),
+        |p, q| (p.0 - q.0).abs() >= gap.0 || (p.1 - q.1).abs() >= gap.1,
     );
     chart.draw_series(rings).map_err(|e| plot_err(path, e))?;
     chart.draw_series(labels).map_err(|e| plot_err(path, e))?;
@@ -1446,6 +1463,29 @@ pub fn plot_retarget_preview(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every dominant offset gets its number unless a stronger one's is in the way: all of the
+    /// shelf's when nothing is, only the strongest when every spot is taken.
+    #[test]
+    fn every_peak_is_numbered_unless_a_stronger_ones_number_is_there() {
+        let shelf = motif_core::procedural::generate("shelf", 0).expect("shelf");
+        let options = crate::offsets::OffsetOptions { seed: 1, ..Default::default() };
+        let a = crate::offsets::analyze_offsets(&shelf.mesh, &options, &motif_core::progress::NoProgress)
+            .expect("offsets");
+        assert!(a.dominant.len() > 8, "{} peaks", a.dominant.len());
+        let at = |d: &crate::offsets::DominantOffset, s: f64| (s * d.offset[0], s * d.offset[1]);
+        let (rings, labels) = peak_marks(&a, at, |p| p, |_| true, |_, _| true);
+        assert_eq!((rings.len(), labels.len()), (2 * a.dominant.len(), a.dominant.len()));
+        let (_, labels) = peak_marks(&a, at, |p| p, |_| true, |_, _| false);
+        assert_eq!(labels.len(), 1);
+        // Numbers need 0.3 (model units of this picture) across or up: the shelf's peaks lie on a
+        // lattice of 0.42 × 0.37, so all fit; at 0.5 across, neighbours along a row collide.
+        let room =
+            |w: f64| move |p: (f64, f64), q: (f64, f64)| (p.0 - q.0).abs() >= w || (p.1 - q.1).abs() >= 0.3;
+        assert_eq!(peak_marks(&a, at, |p| p, |_| true, room(0.3)).1.len(), a.dominant.len());
+        let fewer = peak_marks(&a, at, |p| p, |_| true, room(0.5)).1.len();
+        assert!(1 < fewer && fewer < a.dominant.len(), "{fewer} of {}", a.dominant.len());
+    }
 
     /// A camera looking down −z with y up sees +x on the right (as OpenGL's default camera and
     /// Blender's front view do), and the screen frame is right-handed for any view: right × up
