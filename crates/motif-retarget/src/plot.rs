@@ -1478,8 +1478,9 @@ mod tests {
         assert_eq!((rings.len(), labels.len()), (2 * a.dominant.len(), a.dominant.len()));
         let (_, labels) = peak_marks(&a, at, |p| p, |_| true, |_, _| false);
         assert_eq!(labels.len(), 1);
-        // Numbers need 0.3 (model units of this picture) across or up: the shelf's peaks lie on a
-        // lattice of 0.42 × 0.37, so all fit; at 0.5 across, neighbours along a row collide.
+        // Numbers need 0.3 across or up (in the picture's normalised units): the shelf's peaks lie
+        // on a lattice of 0.42 × 0.37 model units, 0.494 × 0.435 normalised (× 1.1765), so all
+        // fit; at 0.5 across, neighbours along a row collide.
         let room =
             |w: f64| move |p: (f64, f64), q: (f64, f64)| (p.0 - q.0).abs() >= w || (p.1 - q.1).abs() >= 0.3;
         assert_eq!(peak_marks(&a, at, |p| p, |_| true, room(0.3)).1.len(), a.dominant.len());
