@@ -216,15 +216,21 @@ fn no_repetition(analysis: &OffsetAnalysis) -> bool {
 /// and each one's number (as the bar chart numbers it) beside its positive ring (`label_at` of
 /// its position), unless a stronger peak's number is already there: `apart(p, q)` says whether
 /// numbers at `p` and `q` leave each other readable. (Only the first eight were numbered
-/// before, and the bars past 7 had no ring to point to.)
+/// before, and the bars past 7 had no ring to point to.) Each number stands on a white ground,
+/// `ground(p, chars)` (the corners of a number of `chars` characters whose top left is at `p`),
+/// so that dense heat does not hide it (the bunny's grey numbers were unreadable over it), and
+/// is drawn darker than a grey ring.
+#[allow(clippy::type_complexity)]
 fn peak_marks(
     analysis: &OffsetAnalysis,
     at: impl Fn(&crate::offsets::DominantOffset, f64) -> (f64, f64),
     label_at: impl Fn((f64, f64)) -> (f64, f64),
     keep: impl Fn(&crate::offsets::DominantOffset) -> bool,
     apart: impl Fn((f64, f64), (f64, f64)) -> bool,
-) -> (Vec<Circle<(f64, f64), i32>>, Vec<Text<'static, (f64, f64), String>>) {
+    ground: impl Fn((f64, f64), usize) -> [(f64, f64); 2],
+) -> (Vec<Circle<(f64, f64), i32>>, Vec<Rectangle<(f64, f64)>>, Vec<Text<'static, (f64, f64), String>>) {
     let mut rings = Vec::new();
+    let mut grounds = Vec::new();
     let mut labels = Vec::new();
     let mut placed: Vec<(f64, f64)> = Vec::new();
     for (k, d) in analysis.dominant.iter().enumerate().filter(|(_, d)| keep(d)) {
@@ -235,11 +241,21 @@ fn peak_marks(
         let p = label_at(at(d, 1.0));
         if placed.iter().all(|&q| apart(p, q)) {
             placed.push(p);
-            labels.push(Text::new(format!("{k}"), p, (FONT, 12).into_font().color(&colour)));
+            let text = format!("{k}");
+            grounds.push(Rectangle::new(ground(p, text.len()), WHITE.mix(0.85).filled()));
+            let ink = if colour == RGBColor(140, 140, 140) { RGBColor(90, 90, 90) } else { colour };
+            labels.push(Text::new(text, p, (FONT, 12).into_font().color(&ink)));
         }
     }
-    (rings, labels)
+    (rings, grounds, labels)
 }
+
+/// Where a peak's number starts (its top left), in pixels right of and above its ring's centre:
+/// right of the ring (radius 9), centred on it, so that the ring does not strike through it.
+const PEAK_NUMBER_AT_PX: (f64, f64) = (12.0, 6.0);
+
+/// Pixels of a peak number's white ground per character, and its height (12-pixel text).
+const PEAK_GROUND_PX: (f64, f64) = (7.5, 13.0);
 
 /// Room a peak's number needs, in pixels: two digits of 12-pixel text, with a margin.
 const PEAK_LABEL_PX: (f64, f64) = (18.0, 13.0);
@@ -386,13 +402,19 @@ fn draw_profile(
     let (pw, ph) = chart.plotting_area().dim_in_pixel();
     let x_gap = PEAK_LABEL_PX.0 * 2.0 * extent / pw.max(1) as f64;
     let log_gap = PEAK_LABEL_PX.1 * (top / 0.8).ln() / ph.max(1) as f64;
-    let (rings, labels) = peak_marks(
+    let (x_px, log_px) = (2.0 * extent / pw.max(1) as f64, (top / 0.8).ln() / ph.max(1) as f64);
+    let (rings, grounds, labels) = peak_marks(
         analysis,
         |d, s| (s * d.offset[a], (d.peak.support as f64).max(1.0)),
-        |p| (p.0 + 0.015 * extent, p.1 * 1.35),
+        |p| (p.0 + PEAK_NUMBER_AT_PX.0 * x_px, p.1 * (PEAK_NUMBER_AT_PX.1 * log_px).exp()),
         |_| true,
         |p, q| (p.0 - q.0).abs() >= x_gap || (p.1 / q.1).ln().abs() >= log_gap,
+        |p, chars| {
+            let w = PEAK_GROUND_PX.0 * chars as f64 + 2.0;
+            [(p.0 - x_px, p.1 * log_px.exp()), (p.0 + w * x_px, p.1 / (PEAK_GROUND_PX.1 * log_px).exp())]
+        },
     );
+    chart.draw_series(grounds).map_err(|e| plot_err(path, e))?;
     chart.draw_series(rings).map_err(|e| plot_err(path, e))?;
     chart.draw_series(labels).map_err(|e| plot_err(path, e))?;
     // Principal offsets: a line from the origin to each, at the top, labelled.
@@ -552,15 +574,21 @@ fn draw_projection(
         PEAK_LABEL_PX.0 * 2.0 * extent / pw.max(1) as f64,
         PEAK_LABEL_PX.1 * 2.0 * extent / ph.max(1) as f64,
     );
-    let (rings, labels) = peak_marks(
+    let per = (2.0 * extent / pw.max(1) as f64, 2.0 * extent / ph.max(1) as f64);
+    let (rings, grounds, labels) = peak_marks(
         analysis,
         |d, s| (s * d.offset[a], s * d.offset[b]),
-        |p| (p.0 + 0.02 * extent, p.1 + 0.03 * extent),
+        |p| (p.0 + PEAK_NUMBER_AT_PX.0 * per.0, p.1 + PEAK_NUMBER_AT_PX.1 * per.1),
         // In the three projections, a peak is circled in those whose plane it lies near: the
         // heat sink's XZ and YZ views showed a chain of 25 rings, the XY view's peaks projected.
         |d| ring_slab.is_none_or(|slab| d.offset[3 - a - b].abs() <= slab),
         |p, q| (p.0 - q.0).abs() >= gap.0 || (p.1 - q.1).abs() >= gap.1,
+        |p, chars| {
+            let w = PEAK_GROUND_PX.0 * chars as f64 + 2.0;
+            [(p.0 - per.0, p.1 + per.1), (p.0 + w * per.0, p.1 - PEAK_GROUND_PX.1 * per.1)]
+        },
     );
+    chart.draw_series(grounds).map_err(|e| plot_err(path, e))?;
     chart.draw_series(rings).map_err(|e| plot_err(path, e))?;
     chart.draw_series(labels).map_err(|e| plot_err(path, e))?;
     // Principal offsets as arrows (dashed when the verdict rejected them).
@@ -1474,17 +1502,20 @@ mod tests {
             .expect("offsets");
         assert!(a.dominant.len() > 8, "{} peaks", a.dominant.len());
         let at = |d: &crate::offsets::DominantOffset, s: f64| (s * d.offset[0], s * d.offset[1]);
-        let (rings, labels) = peak_marks(&a, at, |p| p, |_| true, |_, _| true);
+        let no_ground = |p: (f64, f64), _| [p, p];
+        let (rings, grounds, labels) = peak_marks(&a, at, |p| p, |_| true, |_, _| true, no_ground);
         assert_eq!((rings.len(), labels.len()), (2 * a.dominant.len(), a.dominant.len()));
-        let (_, labels) = peak_marks(&a, at, |p| p, |_| true, |_, _| false);
-        assert_eq!(labels.len(), 1);
+        // One white ground under each number, none under a number left out.
+        assert_eq!(grounds.len(), labels.len());
+        let (_, grounds, labels) = peak_marks(&a, at, |p| p, |_| true, |_, _| false, no_ground);
+        assert_eq!((grounds.len(), labels.len()), (1, 1));
         // Numbers need 0.3 across or up (in the picture's normalised units): the shelf's peaks lie
         // on a lattice of 0.42 × 0.37 model units, 0.494 × 0.435 normalised (× 1.1765), so all
         // fit; at 0.5 across, neighbours along a row collide.
         let room =
             |w: f64| move |p: (f64, f64), q: (f64, f64)| (p.0 - q.0).abs() >= w || (p.1 - q.1).abs() >= 0.3;
-        assert_eq!(peak_marks(&a, at, |p| p, |_| true, room(0.3)).1.len(), a.dominant.len());
-        let fewer = peak_marks(&a, at, |p| p, |_| true, room(0.5)).1.len();
+        assert_eq!(peak_marks(&a, at, |p| p, |_| true, room(0.3), no_ground).2.len(), a.dominant.len());
+        let fewer = peak_marks(&a, at, |p| p, |_| true, room(0.5), no_ground).2.len();
         assert!(1 < fewer && fewer < a.dominant.len(), "{fewer} of {}", a.dominant.len());
     }
 
