@@ -170,6 +170,12 @@
 //! join too (three lose 0.013–0.019), and medium streets fall from 0.922 to 0.912, hard
 //! facades from 0.861 to 0.837.
 //!
+//! Images compared also mirrored across the wall's horizontal axis (a window seen from the left
+//! shows its reveal's inner side on the right), with one slab for all of a wall's boxes (1.5
+//! times their median thickness, not each box's own), tried on the same scenes (2026-11-30,
+//! seeds 1–12): hard streets 0.714 → 0.730 (+0.016 ±0.007 paired), but medium streets 0.922 →
+//! 0.912 and hard facades 0.861 → 0.847; dropped (`docs/detect.md`, "mirrored images").
+//!
 //! On the benchmark, EM + SC F reassignment → communities, paired over the 12 scenes (seeds
 //! 1–12): facades 0.938 → 0.952 (+0.014 ±0.011) / 0.921 → 0.941 (+0.020 ±0.010) / 0.735 →
 //! 0.832 (+0.097 ±0.022), easy / medium / hard; streets 0.933 → 0.939 (+0.006 ±0.004) / 0.863
