@@ -113,31 +113,35 @@ pub struct JsonArg {
     pub json: Option<PathBuf>,
 }
 
-/// A path for a `--json` report: not a model or picture file (as [`json_path`]), and not an
-/// existing file that holds one of the documents Motif reads (a detection result or ground
-/// truth, a symmetry annotation, handles, an MRF problem, a data-set manifest): `motif eval
-/// --json r.json g.json r2.json` took the result `r.json` as the report's file and overwrote
-/// it. `--json` takes an optional value, so the messages say how it can take an input by
-/// mistake. `--force` lifts the second check, as it lets any output replace a file.
-///
-/// Only a regular file is looked into: reading a pipe, a FIFO or a terminal given as the report's
-/// path (`--json /dev/stdout | cat`) waited forever for input.
+/// A path for a `--json` report: not a model or picture file (as [`json_path`]). Once the
+/// arguments are parsed, [`json_report_clash`] also refuses an existing file that holds one of
+/// the documents Motif reads: `motif eval --json r.json g.json r2.json` took the result `r.json`
+/// as the report's file and overwrote it. `--json` takes an optional value, so the messages say
+/// how it can take an input by mistake.
 pub fn json_report_path(value: &str) -> Result<PathBuf, String> {
-    const HINT: &str = "did --json take an input file as its value? put --json after the inputs, or write \
-                        --json=REPORT.json";
     if let Some(e) = model_extension(value) {
         return Err(format!(
             "a JSON report would be written to {value}, whose .{e} extension names a model or picture \
-             format ({HINT})"
+             format ({JSON_REPORT_HINT})"
         ));
     }
-    let path = PathBuf::from(value);
-    // A value parser sees no other flag; `--force` is looked up among the arguments themselves.
-    let forced = std::env::args_os().any(|a| a == "--force");
+    Ok(PathBuf::from(value))
+}
+
+const JSON_REPORT_HINT: &str =
+    "did --json take an input file as its value? put --json after the inputs, or write --json=REPORT.json";
+
+/// Why a `--json` report may not replace the file at `path`, when it holds one of Motif's input
+/// documents (an annotation, handles, an MRF problem, a detection result or ground truth, a
+/// data-set manifest): `--json` given before the inputs takes the first of them as its value.
+/// Checked once the arguments are parsed, and not under `--force`, which lets any output
+/// replace an input (a value parser sees no other flag: this check used to look for `--force`
+/// among the raw arguments). Only a regular file is looked into: reading a pipe, a FIFO or a
+/// terminal given as the report's path (`--json /dev/stdout | cat`) waited forever for input.
+pub fn json_report_clash(path: &std::path::Path) -> Option<String> {
     let mut head = Vec::new();
-    if !forced
-        && std::fs::metadata(&path).is_ok_and(|m| m.is_file())
-        && let Ok(f) = std::fs::File::open(&path)
+    if std::fs::metadata(path).is_ok_and(|m| m.is_file())
+        && let Ok(f) = std::fs::File::open(path)
     {
         use std::io::Read;
         let _ = f.take(1 << 16).read_to_end(&mut head);
@@ -149,20 +153,18 @@ pub fn json_report_path(value: &str) -> Result<PathBuf, String> {
     let kind = if first_key("\"format\"")
         && ["motif_symmetry_v1", "motif_handles_v1", "mrf_grid_v1"].iter().any(|f| text.contains(f))
     {
-        Some("an annotation, handles or MRF problem")
+        "an annotation, handles or MRF problem"
     } else if first_key("\"scene\"") && text.contains("\"classes\"") {
-        Some("a detection result or ground truth")
+        "a detection result or ground truth"
     } else if is_manifest(&text) {
-        Some("a data-set manifest (a list of files, as `motif sparsity` reads)")
+        "a data-set manifest (a list of files, as `motif sparsity` reads)"
     } else {
-        None
+        return None;
     };
-    match kind {
-        Some(kind) => {
-            Err(format!("{value} holds {kind}, which a report would overwrite ({HINT}; or pass --force)"))
-        }
-        None => Ok(path),
-    }
+    Some(format!(
+        "{} holds {kind}, which a report would overwrite ({JSON_REPORT_HINT}; or pass --force)",
+        path.display()
+    ))
 }
 
 /// Whether JSON text (possibly cut) is a data-set manifest, `{"files": [{"path": ...}, ...]}`

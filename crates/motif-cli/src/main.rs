@@ -126,8 +126,26 @@ fn parse_arguments() -> cli::Cli {
         path.push(name.to_string());
         m = sub;
     }
-    output::set_command_path(path);
-    cli::Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit())
+    output::set_command_path(path.clone());
+    let parsed = cli::Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    // A report's file that holds one of the documents Motif reads (`cli::json_report_clash`),
+    // refused as clap refuses a value (exit 2), unless --force.
+    if !parsed.global.force
+        && let Ok(Some(report)) = m.try_get_one::<std::path::PathBuf>("json")
+        && report.as_os_str() != "-"
+        && let Some(why) = cli::json_report_clash(report)
+    {
+        let mut sub = &mut cmd;
+        for name in &path {
+            sub = sub.find_subcommand_mut(name).expect("the parsed subcommand exists");
+        }
+        let e = clap::Error::raw(
+            clap::error::ErrorKind::ValueValidation,
+            format!("invalid value '{}' for '--json [<FILE>]': {why}", report.display()),
+        );
+        e.format(sub).exit();
+    }
+    parsed
 }
 
 /// A count given as `-1` or `1.5` (`--seed -1`, `--dims 2,-2,2`): Rust's own words, "invalid
