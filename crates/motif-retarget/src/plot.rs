@@ -204,9 +204,12 @@ fn dominant_colour(analysis: &OffsetAnalysis, status: DominantStatus) -> RGBColo
     match status {
         DominantStatus::Accepted if no_repetition(analysis) => RGBColor(90, 90, 90),
         DominantStatus::Accepted => RGBColor(0, 90, 200),
-        _ => RGBColor(140, 140, 140),
+        _ => REJECTED_PEAK,
     }
 }
+
+/// A rejected peak's ring; its number is drawn darker ([`peak_marks`]).
+const REJECTED_PEAK: RGBColor = RGBColor(140, 140, 140);
 
 fn no_repetition(analysis: &OffsetAnalysis) -> bool {
     analysis.repetition.kind == crate::offsets::Repetition::NoRepetition
@@ -243,7 +246,7 @@ fn peak_marks(
             placed.push(p);
             let text = format!("{k}");
             grounds.push(Rectangle::new(ground(p, text.len()), WHITE.mix(0.85).filled()));
-            let ink = if colour == RGBColor(140, 140, 140) { RGBColor(90, 90, 90) } else { colour };
+            let ink = if colour == REJECTED_PEAK { RGBColor(90, 90, 90) } else { colour };
             labels.push(Text::new(text, p, (FONT, 12).into_font().color(&ink)));
         }
     }
@@ -400,9 +403,8 @@ fn draw_profile(
     // Histogram peaks at their support's height, both signs.
     // Pixels to chart units: x linear, y logarithmic from 0.8 to `top`.
     let (pw, ph) = chart.plotting_area().dim_in_pixel();
-    let x_gap = PEAK_LABEL_PX.0 * 2.0 * extent / pw.max(1) as f64;
-    let log_gap = PEAK_LABEL_PX.1 * (top / 0.8).ln() / ph.max(1) as f64;
     let (x_px, log_px) = (2.0 * extent / pw.max(1) as f64, (top / 0.8).ln() / ph.max(1) as f64);
+    let (x_gap, log_gap) = (PEAK_LABEL_PX.0 * x_px, PEAK_LABEL_PX.1 * log_px);
     let (rings, grounds, labels) = peak_marks(
         analysis,
         |d, s| (s * d.offset[a], (d.peak.support as f64).max(1.0)),
@@ -570,11 +572,8 @@ fn draw_projection(
         .map_err(|e| plot_err(path, e))?;
     // Dominant offsets.
     let (pw, ph) = chart.plotting_area().dim_in_pixel();
-    let gap = (
-        PEAK_LABEL_PX.0 * 2.0 * extent / pw.max(1) as f64,
-        PEAK_LABEL_PX.1 * 2.0 * extent / ph.max(1) as f64,
-    );
     let per = (2.0 * extent / pw.max(1) as f64, 2.0 * extent / ph.max(1) as f64);
+    let gap = (PEAK_LABEL_PX.0 * per.0, PEAK_LABEL_PX.1 * per.1);
     let (rings, grounds, labels) = peak_marks(
         analysis,
         |d, s| (s * d.offset[a], s * d.offset[b]),
