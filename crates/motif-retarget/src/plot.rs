@@ -393,11 +393,10 @@ fn draw_profile(
             (FONT, 13).into_font().color(&RGBColor(110, 110, 110)),
         )))
         .map_err(|e| plot_err(path, e))?;
-    let log_max = (1.0 + max).ln();
     chart
         .draw_series(counts.iter().map(|(&i, &m)| {
             let x = i as f64 * h;
-            Rectangle::new([(x - 0.45 * h, 0.8), (x + 0.45 * h, m)], heat((1.0 + m).ln() / log_max).filled())
+            Rectangle::new([(x - 0.45 * h, 0.8), (x + 0.45 * h, m)], heat(heat_level(m, max)).filled())
         }))
         .map_err(|e| plot_err(path, e))?;
     // Histogram peaks at their support's height, both signs.
