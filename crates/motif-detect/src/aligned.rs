@@ -174,7 +174,12 @@
 //! shows its reveal's inner side on the right), with one slab for all of a wall's boxes (1.5
 //! times their median thickness, not each box's own), tried on the same scenes (2026-11-30,
 //! seeds 1–12): hard streets 0.714 → 0.730 (+0.016 ±0.007 paired), but medium streets 0.922 →
-//! 0.912 and hard facades 0.861 → 0.847; dropped (`docs/detect.md`, "mirrored images").
+//! 0.912 and hard facades 0.861 → 0.847; dropped (`docs/detect.md`, "mirrored images"). The
+//! mirrored images alone, along the axis the pictured blocks are most symmetric along (chosen
+//! from the images, so a turned scan would mirror along the turned axis), measured after:
+//! within one standard error of the defaults at every level, on seeds 1–12 (hard streets
+//! +0.009 ±0.008) and on seeds 13–24 (hard streets +0.003 ±0.007, hard facades −0.002
+//! ±0.007); dropped as well.
 //!
 //! On the benchmark, EM + SC F reassignment → communities, paired over the 12 scenes (seeds
 //! 1–12): facades 0.938 → 0.952 (+0.014 ±0.011) / 0.921 → 0.941 (+0.020 ±0.010) / 0.735 →
