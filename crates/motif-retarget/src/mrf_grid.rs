@@ -23,8 +23,11 @@ use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
-use crate::alpha_expansion::{AlphaExpansion, AlphaExpansionOptions, MrfEnergy, Termination};
+use crate::alpha_expansion::{
+    AlphaExpansion, AlphaExpansionOptions, AlphaExpansionResult, MrfEnergy, Termination,
+};
 use crate::error::{Error, Result};
+use crate::maxflow::Capacity;
 
 /// The `format` value of a grid MRF problem.
 pub const FORMAT: &str = "mrf_grid_v1";
@@ -573,7 +576,11 @@ impl GridProblem {
         Ok(unary + self.edge_weight * pair)
     }
 
-    /// Solves the problem by alpha-expansion from its initial labelling.
+    /// Solves the problem by alpha-expansion from its initial labelling, on 32-bit capacities
+    /// when every sum the solver forms provably fits them (non-negative costs, the bound of
+    /// `fits_32_bit_capacities`: the shipped and generated problems do), else on 64-bit ones.
+    /// Both give the same moves and labels; the smaller arcs and nodes make the 30³ grid's solve
+    /// about 10% faster.
     ///
     /// # Errors
     /// Only for an invalid problem (see [`GridProblem::validate`]).
@@ -582,22 +589,19 @@ impl GridProblem {
         let start = Instant::now();
         let l = self.num_labels;
         let edges = self.edges();
-        let weighted: Vec<i64> = self.pairwise.iter().map(|&v| self.edge_weight * v).collect();
-        let unary = &self.unary;
-        let energy = MrfEnergy::new(
-            self.num_sites(),
-            l,
-            &edges,
-            |p, a| unary[p * l + a],
-            |_, _, a, b| weighted[a * l + b],
-        );
         let init = self.initial_labels();
-        let r = AlphaExpansion::<i64>::new().solve(&energy, &init, options)?;
+        let initial_energy = self.energy_with_edges(&init, &edges)?;
+        // 32-bit capacities halve the solver's memory traffic (about 10% faster on the 30³
+        // grid); they are used only when every sum the solver forms provably fits.
+        let r = if self.fits_32_bit_capacities(initial_energy, edges.len()) {
+            self.expand_with(&edges, &init, options, |v| v as i32, i64::from)?
+        } else {
+            self.expand_with(&edges, &init, options, |v| v, |v| v)?
+        };
         let solve_ms = start.elapsed().as_secs_f64() * 1e3;
         let energy = self.energy_with_edges(&r.labels, &edges)?;
-        let initial_energy = self.energy_with_edges(&init, &edges)?;
         let forbidden_sites = (0..self.num_sites())
-            .filter(|&p| unary[p * l + r.labels[p] as usize] >= self.invalid_cost)
+            .filter(|&p| self.unary[p * l + r.labels[p] as usize] >= self.invalid_cost)
             .count();
         Ok(GridSolution {
             dims: self.dims,
@@ -617,6 +621,60 @@ impl GridProblem {
             pairwise_issues: self.pairwise_issues(),
             solve_ms,
         })
+    }
+
+    /// Alpha-expansion from `init` with capacities of type `C`: costs converted by `to`, energies
+    /// back by `back`.
+    fn expand_with<C: Capacity>(
+        &self,
+        edges: &[[u32; 2]],
+        init: &[u32],
+        options: &AlphaExpansionOptions,
+        to: impl Fn(i64) -> C,
+        back: impl Fn(C) -> i64,
+    ) -> Result<AlphaExpansionResult<i64>> {
+        let l = self.num_labels;
+        let weighted: Vec<C> = self.pairwise.iter().map(|&v| to(self.edge_weight * v)).collect();
+        let unary: Vec<C> = self.unary.iter().map(|&v| to(v)).collect();
+        let energy = MrfEnergy::new(
+            self.num_sites(),
+            l,
+            edges,
+            |p, a| unary[p * l + a],
+            |_, _, a, b| weighted[a * l + b],
+        );
+        let r = AlphaExpansion::<C>::new().solve(&energy, init, options)?;
+        Ok(AlphaExpansionResult {
+            labels: r.labels,
+            energy: back(r.energy),
+            initial_energy: back(r.initial_energy),
+            cycles: r.cycles,
+            cycle_energies: r.cycle_energies.into_iter().map(back).collect(),
+            moves: r.moves,
+            accepted_moves: r.accepted_moves,
+            truncated_terms: r.truncated_terms,
+            termination: r.termination,
+            elapsed_ms: r.elapsed_ms,
+        })
+    }
+
+    /// Whether alpha-expansion on this problem, from a labelling of energy `initial_energy`, can
+    /// use 32-bit capacities: every cost is non-negative and every sum the solver forms stays
+    /// below 2³¹ / 4. With non-negative costs the energy only falls from `initial_energy`; a
+    /// move's flow and the sum of its sink capacities are at most the current labelling's unary
+    /// costs plus four times each edge's largest pairwise cost (≤ `initial_energy` + 4·|E|·w);
+    /// one node's terminal capacity is at most one unary cost plus 4·w per incident edge; one
+    /// arc's, 4·w (w: `edge_weight` times the largest pairwise cost).
+    fn fits_32_bit_capacities(&self, initial_energy: i64, num_edges: usize) -> bool {
+        if self.unary.iter().any(|&u| u < 0) || self.pairwise.iter().any(|&v| v < 0) || initial_energy < 0 {
+            return false;
+        }
+        let max_unary = self.unary.iter().copied().max().unwrap_or(0) as i128;
+        let w = self.edge_weight as i128 * self.pairwise.iter().copied().max().unwrap_or(0) as i128;
+        let degree = 2 * self.connectivity.offsets().len() as i128;
+        let flow = initial_energy as i128 + 4 * num_edges as i128 * w;
+        let node = max_unary + 4 * degree * w;
+        2 * flow + 2 * node <= (i32::MAX / 4) as i128
     }
 
     /// The problem as `mrf_grid_v1` JSON, with the descriptive fields of the shipped files.
@@ -722,5 +780,35 @@ pub fn generate_grid(
         pairwise,
         invalid_cost,
         init_labels: InitLabels::UnaryArgmin,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_benchmark_grids_fit_32_bit_capacities_and_large_or_negative_costs_do_not() {
+        for (dims, labels, conn) in
+            [([30, 30, 30], 64, Connectivity::Six), ([20, 20, 20], 30, Connectivity::TwentySix)]
+        {
+            let p = generate_grid(dims, labels, conn, 1);
+            let edges = p.edges();
+            let e = p.energy_with_edges(&p.initial_labels(), &edges).unwrap();
+            assert!(p.fits_32_bit_capacities(e, edges.len()), "{dims:?}");
+            // The bound is on the initial energy: a start near 2³¹ / 8 does not fit.
+            assert!(!p.fits_32_bit_capacities(i64::from(i32::MAX / 8), edges.len()), "{dims:?}");
+        }
+        let mut p = generate_grid([4, 4, 4], 5, Connectivity::Six, 2);
+        let edges = p.edges();
+        let e = p.energy_with_edges(&p.initial_labels(), &edges).unwrap();
+        assert!(p.fits_32_bit_capacities(e, edges.len()));
+        p.unary[3] = -1;
+        assert!(!p.fits_32_bit_capacities(e, edges.len()), "a negative cost");
+        p.unary[3] = 1 << 31;
+        assert!(!p.fits_32_bit_capacities(e, edges.len()), "one cost beyond 32 bits");
+        p.unary[3] = 0;
+        p.pairwise[1] = 1 << 28;
+        assert!(!p.fits_32_bit_capacities(e, edges.len()), "a pairwise cost that 4·|E| times overflows");
     }
 }
