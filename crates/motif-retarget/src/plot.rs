@@ -211,6 +211,9 @@ fn dominant_colour(analysis: &OffsetAnalysis, status: DominantStatus) -> RGBColo
 /// A rejected peak's ring; its number is drawn darker ([`peak_marks`]).
 const REJECTED_PEAK: RGBColor = RGBColor(140, 140, 140);
 
+/// Secondary text: the colour bar's caption and the text panel's notes.
+const NOTE_GREY: RGBColor = RGBColor(80, 80, 80);
+
 fn no_repetition(analysis: &OffsetAnalysis) -> bool {
     analysis.repetition.kind == crate::offsets::Repetition::NoRepetition
 }
@@ -483,7 +486,7 @@ fn draw_colour_bar(
 ) -> Result<()> {
     let (x0, y0) = at;
     let (width, height) = (COLOUR_BAR_WIDTH, 12);
-    let grey = RGBColor(80, 80, 80);
+    let grey = NOTE_GREY;
     // Pixel column k shows the colour of the count whose level is k / (width − 1).
     for k in 0..width {
         let t = k as f64 / (width - 1).max(1) as f64;
@@ -810,7 +813,7 @@ fn draw_text(
         14,
         BLACK,
     ));
-    let grey = RGBColor(80, 80, 80);
+    let grey = NOTE_GREY;
     if rep.kind == crate::offsets::Repetition::NoRepetition {
         for l in wrap(&rep.summary, 88) {
             lines.push((l, 13, verdict.1));
@@ -901,7 +904,7 @@ fn draw_text(
     lines.push((
         format!("model units; normalised = {:.4} x (model - centre)", analysis.normalisation.scale),
         13,
-        RGBColor(80, 80, 80),
+        grey,
     ));
     lines.push((
         format!(
@@ -915,7 +918,7 @@ fn draw_text(
             t.refinement
         ),
         13,
-        RGBColor(80, 80, 80),
+        grey,
     ));
     let mut y = 20;
     for (s, size, colour) in lines {
