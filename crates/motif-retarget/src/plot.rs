@@ -486,7 +486,6 @@ fn draw_colour_bar(
 ) -> Result<()> {
     let (x0, y0) = at;
     let (width, height) = (COLOUR_BAR_WIDTH, 12);
-    let grey = NOTE_GREY;
     // Pixel column k shows the colour of the count whose level is k / (width − 1).
     for k in 0..width {
         let t = k as f64 / (width - 1).max(1) as f64;
@@ -494,7 +493,7 @@ fn draw_colour_bar(
             .map_err(|e| plot_err(path, e))?;
     }
     // The frame one pixel outside the colours, so that both ends' colours stay visible.
-    area.draw(&Rectangle::new([(x0 - 1, y0 - 1), (x0 + width, y0 + height)], grey.stroke_width(1)))
+    area.draw(&Rectangle::new([(x0 - 1, y0 - 1), (x0 + width, y0 + height)], NOTE_GREY.stroke_width(1)))
         .map_err(|e| plot_err(path, e))?;
     let x_of = |count: f64| x0 + (heat_level(count, max) * (width - 1) as f64).round() as i32;
     let label = |count: f64| format!("{count:.0}");
@@ -508,10 +507,10 @@ fn draw_colour_bar(
         ticks.pop();
     }
     ticks.push(max);
-    let font = (FONT, 12).into_font().color(&grey);
+    let font = (FONT, 12).into_font().color(&NOTE_GREY);
     for t in ticks {
         let x = x_of(t);
-        area.draw(&PathElement::new(vec![(x, y0 + height), (x, y0 + height + 4)], grey.stroke_width(1)))
+        area.draw(&PathElement::new(vec![(x, y0 + height), (x, y0 + height + 4)], NOTE_GREY.stroke_width(1)))
             .map_err(|e| plot_err(path, e))?;
         let w = label_width(t).round() as i32;
         area.draw(&Text::new(label(t), (x - w / 2, y0 + height + 6), font.clone()))
@@ -813,7 +812,6 @@ fn draw_text(
         14,
         BLACK,
     ));
-    let grey = NOTE_GREY;
     if rep.kind == crate::offsets::Repetition::NoRepetition {
         for l in wrap(&rep.summary, 88) {
             lines.push((l, 13, verdict.1));
@@ -854,9 +852,9 @@ fn draw_text(
         if p.length_model * analysis.normalisation.scale < analysis.bin_size {
             detail += " (shorter than a bin: a dot at the centre)";
         }
-        lines.push((detail, 13, grey));
+        lines.push((detail, 13, NOTE_GREY));
         if let Some(f) = finer {
-            lines.push((f.into(), 13, grey));
+            lines.push((f.into(), 13, NOTE_GREY));
         }
     }
     if analysis.principal.is_empty() {
@@ -868,7 +866,7 @@ fn draw_text(
                 (0..analysis.principal.len()).map(|i| format!("p{i}")).collect::<Vec<_>>().join(", ")
             ),
             13,
-            grey,
+            NOTE_GREY,
         ));
     }
     lines.push((
@@ -879,32 +877,32 @@ fn draw_text(
         }
         .into(),
         13,
-        grey,
+        NOTE_GREY,
     ));
     lines.push((
         "grey: rejected, marked col (collapsed to 0 under ICP), dri (drifted), dup (a repeat),".into(),
         13,
-        grey,
+        NOTE_GREY,
     ));
     let tau_mark =
         if line_axis(analysis).is_some() { "grey band = |v| < τ" } else { "thin circle = |v| = τ" };
     lines.push((
         format!("low / none (too little / no surface overlap); {tau_mark}, offsets inside are ignored"),
         13,
-        grey,
+        NOTE_GREY,
     ));
     if line_axis(analysis).is_none() && plane_axes(analysis).is_none() {
         lines.push((
             "each projection circles the peaks within τ of its plane; the bars show them all".into(),
             13,
-            grey,
+            NOTE_GREY,
         ));
     }
     let t = &analysis.timings;
     lines.push((
         format!("model units; normalised = {:.4} x (model - centre)", analysis.normalisation.scale),
         13,
-        grey,
+        NOTE_GREY,
     ));
     lines.push((
         format!(
@@ -918,7 +916,7 @@ fn draw_text(
             t.refinement
         ),
         13,
-        grey,
+        NOTE_GREY,
     ));
     let mut y = 20;
     for (s, size, colour) in lines {
