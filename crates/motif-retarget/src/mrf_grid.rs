@@ -163,6 +163,10 @@ pub struct GridSolution {
     pub pairwise_issues: Vec<String>,
     /// Solve time in milliseconds (graph construction and alpha-expansion; not file loading).
     pub solve_ms: f64,
+    /// Width of the max-flow capacities the solve used, 32 or 64 bits ([`GridProblem::solve`]);
+    /// 0 in reports written before it was recorded.
+    #[serde(default)]
+    pub capacity_bits: u32,
 }
 
 /// Reads, validates and solves an `mrf_grid_v1` file.
@@ -593,7 +597,8 @@ impl GridProblem {
         let initial_energy = self.energy_with_edges(&init, &edges)?;
         // 32-bit capacities shrink the solver's nodes and arcs (a solve 5–9% faster); they are
         // used only when every sum the solver forms provably fits.
-        let r = if self.fits_32_bit_capacities(initial_energy, edges.len()) {
+        let narrow = self.fits_32_bit_capacities(initial_energy, edges.len());
+        let r = if narrow {
             self.expand_with(&edges, &init, options, |v| v as i32, i64::from)?
         } else {
             self.expand_with(&edges, &init, options, |v| v, |v| v)?
@@ -620,6 +625,7 @@ impl GridProblem {
             forbidden_sites,
             pairwise_issues: self.pairwise_issues(),
             solve_ms,
+            capacity_bits: if narrow { 32 } else { 64 },
         })
     }
 

@@ -652,6 +652,7 @@ fn grid_solve_on_32_bit_capacities_matches_the_64_bit_solver() {
             .solve(&energy, &p.initial_labels(), &AlphaExpansionOptions::default())
             .unwrap();
         assert!(r.accepted_moves > 1 && r.energy < r.initial_energy, "{dims:?}: a non-trivial solve");
+        assert_eq!(s.capacity_bits, 32, "{dims:?}");
         assert_eq!(s.labels_flat, r.labels, "{dims:?}: labels");
         assert_eq!(
             (s.energy, &s.cycle_energies, s.moves, s.accepted_moves),
@@ -670,6 +671,7 @@ fn grid_solve_on_32_bit_capacities_matches_the_64_bit_solver() {
         big.solve(&AlphaExpansionOptions::default()).unwrap(),
     );
     assert!(t.initial_energy > i64::from(i32::MAX), "the scaled problem needs 64 bits");
+    assert_eq!((s.capacity_bits, t.capacity_bits), (32, 64));
     assert_eq!(t.labels_flat, s.labels_flat);
     assert_eq!((t.energy, t.moves), (s.energy * scale, s.moves));
 }

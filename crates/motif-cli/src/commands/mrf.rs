@@ -75,7 +75,7 @@ pub fn solve(a: MrfSolveArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         sol.accepted_moves,
         sol.termination.as_str()
     );
-    println!("  solve        {:.1} ms", sol.solve_ms);
+    println!("  solve        {:.1} ms ({}-bit capacities)", sol.solve_ms, sol.capacity_bits);
     if sol.truncated_terms > 0 {
         println!("  note         {} non-metric pairwise terms truncated", sol.truncated_terms);
     }
