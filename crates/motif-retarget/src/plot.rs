@@ -263,6 +263,12 @@ const PEAK_NUMBER_AT_PX: (f64, f64) = (12.0, 6.0);
 /// Pixels of a peak number's white ground per character, and its height (12-pixel text).
 const PEAK_GROUND_PX: (f64, f64) = (7.5, 13.0);
 
+/// The corners of the white ground of a peak number of `chars` characters, in pixels from the
+/// number's top left (x right, y up): one pixel of margin left of and above the text.
+fn peak_ground_px(chars: usize) -> [(f64, f64); 2] {
+    [(-1.0, 1.0), (PEAK_GROUND_PX.0 * chars as f64 + 2.0, -PEAK_GROUND_PX.1)]
+}
+
 /// Room a peak's number needs, in pixels: two digits of 12-pixel text, with a margin.
 const PEAK_LABEL_PX: (f64, f64) = (18.0, 13.0);
 
@@ -413,10 +419,7 @@ fn draw_profile(
         |p| (p.0 + PEAK_NUMBER_AT_PX.0 * x_px, p.1 * (PEAK_NUMBER_AT_PX.1 * log_px).exp()),
         |_| true,
         |p, q| (p.0 - q.0).abs() >= x_gap || (p.1 / q.1).ln().abs() >= log_gap,
-        |p, chars| {
-            let w = PEAK_GROUND_PX.0 * chars as f64 + 2.0;
-            [(p.0 - x_px, p.1 * log_px.exp()), (p.0 + w * x_px, p.1 / (PEAK_GROUND_PX.1 * log_px).exp())]
-        },
+        |p, chars| peak_ground_px(chars).map(|(dx, dy)| (p.0 + dx * x_px, p.1 * (dy * log_px).exp())),
     );
     chart.draw_series(grounds).map_err(|e| plot_err(path, e))?;
     chart.draw_series(rings).map_err(|e| plot_err(path, e))?;
@@ -583,10 +586,7 @@ fn draw_projection(
         // heat sink's XZ and YZ views showed a chain of 25 rings, the XY view's peaks projected.
         |d| ring_slab.is_none_or(|slab| d.offset[3 - a - b].abs() <= slab),
         |p, q| (p.0 - q.0).abs() >= gap.0 || (p.1 - q.1).abs() >= gap.1,
-        |p, chars| {
-            let w = PEAK_GROUND_PX.0 * chars as f64 + 2.0;
-            [(p.0 - per.0, p.1 + per.1), (p.0 + w * per.0, p.1 - PEAK_GROUND_PX.1 * per.1)]
-        },
+        |p, chars| peak_ground_px(chars).map(|(dx, dy)| (p.0 + dx * per.0, p.1 + dy * per.1)),
     );
     chart.draw_series(grounds).map_err(|e| plot_err(path, e))?;
     chart.draw_series(rings).map_err(|e| plot_err(path, e))?;
