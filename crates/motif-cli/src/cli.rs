@@ -628,6 +628,11 @@ pub struct MrfSolveArgs {
     /// Which cut a move applies when several are optimal.
     #[arg(long, value_enum, default_value_t)]
     pub ties: TiesArg,
+    /// Build every move's graph anew instead of continuing from the same label's last move
+    /// (flow recycling; same moves and result, only slower: for timing against GCO, which
+    /// builds every move anew).
+    #[arg(long)]
+    pub no_recycle: bool,
     #[command(flatten)]
     pub json: JsonArg,
 }

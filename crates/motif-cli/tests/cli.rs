@@ -659,6 +659,26 @@ fn symmetry_detect_writes_an_annotation_and_mrf_solve_reports_energy() {
     // The report names the problem and the solver's options.
     assert_eq!(r["problem"], "p.json");
     assert_eq!(r["options"]["max_cycles"], 100);
+    // Flow recycling is on by default; `--no-recycle` builds every move anew, with the same result.
+    assert_eq!(
+        (r["recycled_labels"].as_u64(), r["options"]["recycle_flows"].as_bool()),
+        (Some(5), Some(true))
+    );
+    let o = motif(&["mrf", "solve", "p.json", "--no-recycle", "--json", "fresh.json"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("(32-bit capacities)\n"), "{}", stdout(&o));
+    let fresh: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.path().join("fresh.json")).unwrap()).unwrap();
+    assert_eq!(
+        (fresh["recycled_labels"].as_u64(), fresh["options"]["recycle_flows"].as_bool()),
+        (Some(0), Some(false))
+    );
+    assert_eq!(
+        (&fresh["labels_flat"], &fresh["energy"], &fresh["moves"]),
+        (&r["labels_flat"], &r["energy"], &r["moves"])
+    );
+    let o = motif(&["mrf", "solve", "p.json"], d.path());
+    assert!(stdout(&o).contains("(32-bit capacities, flows recycled)"), "{}", stdout(&o));
     std::fs::write(d.path().join("bad.json"), r#"{"format": "mrf_grid_v1", "dims": [2, 2]}"#).unwrap();
     let o = motif(&["mrf", "solve", "bad.json"], d.path());
     assert_eq!(o.status.code(), Some(2));

@@ -220,6 +220,9 @@ pub struct Graph<C: Capacity = f64> {
     pending: Vec<PendingEdge<C>>,
     /// Scratch for the counting sort.
     fill: Vec<u32>,
+    /// Arc `a → b` of each edge, in the order the edges were added, when the adjacency array was
+    /// last built from a reset graph (empty otherwise): see [`Graph::arc_of_edge`].
+    edge_arc: Vec<u32>,
     /// The adjacency array holds every edge.
     finalized: bool,
     /// The search trees of the last run are consistent with the residual graph.
@@ -252,6 +255,7 @@ impl<C: Capacity> Graph<C> {
             arcs: Vec::with_capacity(2 * edge_hint),
             pending: Vec::with_capacity(edge_hint),
             fill: Vec::with_capacity(num_nodes),
+            edge_arc: Vec::new(),
             finalized: false,
             trees_valid: false,
             flow: C::ZERO,
@@ -303,6 +307,19 @@ impl<C: Capacity> Graph<C> {
             self.arc_start.push(end);
         }
         i
+    }
+
+    /// About how many bytes a graph of `nodes` nodes and `edges` edges keeps after a max-flow
+    /// and [`Graph::release_build_buffers`]: nodes, arcs, their index and the queues.
+    pub fn bytes_for(nodes: usize, edges: usize) -> usize {
+        nodes * (std::mem::size_of::<Node<C>>() + 12) + edges * (2 * std::mem::size_of::<Arc<C>>() + 4)
+    }
+
+    /// Frees the buffer that holds edges until the adjacency array is built (it is allocated
+    /// again when edges are added): for graphs kept between max-flows whose edges are all added.
+    pub fn release_build_buffers(&mut self) {
+        self.finalize();
+        self.pending = Vec::new();
     }
 
     /// Number of nodes (terminals not counted).
@@ -383,6 +400,62 @@ impl<C: Capacity> Graph<C> {
         }
     }
 
+    /// The arc `a → b` of the `e`-th edge added since the last [`Graph::reset`] (builds the
+    /// adjacency array if edges are pending), for [`Graph::change_edge_capacity`]. The answer
+    /// holds as long as no edge is added.
+    ///
+    /// # Panics
+    /// If `e` is out of range, or edges were added after a max-flow (the arcs were re-collected
+    /// and no longer follow the order the edges were added in).
+    pub fn arc_of_edge(&mut self, e: usize) -> usize {
+        self.finalize();
+        assert!(
+            self.edge_arc.len() * 2 == self.arcs.len(),
+            "arc_of_edge: edges were added after a max-flow, so their order is lost"
+        );
+        self.edge_arc[e] as usize
+    }
+
+    /// Changes the capacities of an edge after a max-flow, keeping the flow: `d_cap` is added
+    /// to the capacity of `arc` (from [`Graph::arc_of_edge`]) and `d_rev` to that of its reverse.
+    /// A capacity may fall below the flow the arc carries: the excess `e` is then taken off the
+    /// arc and routed through the terminals (source → tail and head → sink gain `e` each and
+    /// the flow value falls by `e`), the reparametrisation of Kohli & Torr's dynamic graph cuts
+    /// (ICCV 2005), which changes every cut's capacity by the same constant. Both ends are
+    /// recorded as changed, so that [`Graph::maxflow_reuse`] repairs the search trees around
+    /// them; the next run then gives the maximum flow of the changed graph.
+    ///
+    /// # Panics
+    /// If `arc` is out of range, or a resulting capacity (the arc's plus its reverse's) is
+    /// negative.
+    pub fn change_edge_capacity(&mut self, arc: usize, d_cap: C, d_rev: C) {
+        self.finalize();
+        let sister = self.arcs[arc].sister as usize;
+        let (tail, head) = (self.arcs[sister].head as usize, self.arcs[arc].head as usize);
+        self.arcs[arc].rcap += d_cap;
+        self.arcs[sister].rcap += d_rev;
+        let (r, rs) = (self.arcs[arc].rcap, self.arcs[sister].rcap);
+        assert!(r + rs >= C::ZERO, "change_edge_capacity: negative total capacity");
+        if r < C::ZERO {
+            // tail → head carries more than its capacity.
+            self.arcs[arc].rcap = C::ZERO;
+            self.arcs[sister].rcap = r + rs;
+            self.add_tweights(tail, -r, C::ZERO);
+            self.add_tweights(head, C::ZERO, -r);
+            self.flow += r;
+        } else if rs < C::ZERO {
+            self.arcs[sister].rcap = C::ZERO;
+            self.arcs[arc].rcap = r + rs;
+            self.add_tweights(head, -rs, C::ZERO);
+            self.add_tweights(tail, C::ZERO, -rs);
+            self.flow += rs;
+        }
+        if self.trees_valid {
+            self.mark_node(tail);
+            self.mark_node(head);
+        }
+    }
+
     /// Computes the maximum flow from scratch (search trees grown anew; any flow already pushed
     /// by an earlier run is kept) and returns its value.
     pub fn maxflow(&mut self) -> C {
@@ -428,6 +501,8 @@ impl<C: Capacity> Graph<C> {
             return false;
         }
         let n = self.nodes.len();
+        self.edge_arc.clear();
+        let in_order = self.arcs.is_empty();
         if !self.arcs.is_empty() {
             // Edges added after a run: re-collect the existing arcs with their residuals.
             for v in 0..self.arc_start.len().saturating_sub(1) {
@@ -465,6 +540,9 @@ impl<C: Capacity> Graph<C> {
             self.fill[e.b as usize] += 1;
             self.arcs[i as usize] = Arc { head: e.b, sister: j, rcap: e.cap };
             self.arcs[j as usize] = Arc { head: e.a, sister: i, rcap: e.rev_cap };
+            if in_order {
+                self.edge_arc.push(i);
+            }
         }
         self.pending.clear();
         self.finalized = true;
@@ -563,9 +641,26 @@ impl<C: Capacity> Graph<C> {
             };
             let old_tree = self.nodes[vi].tree;
             if new_tree == Tree::Free {
-                // No terminal residual left: a root loses its parent; other nodes keep theirs.
-                if self.nodes[vi].parent == TERMINAL {
+                // No terminal residual left: a root loses its parent; other nodes keep theirs
+                // while the arc to it keeps residual capacity (an edge's capacity may have
+                // changed). A node still in a tree scans its arcs again: a changed edge may
+                // offer a new path.
+                let parent = self.nodes[vi].parent;
+                if parent == TERMINAL {
                     self.set_orphan(v);
+                } else if parent < ORPHAN && old_tree != Tree::Free {
+                    let a = parent as usize;
+                    let cap = if old_tree == Tree::Source {
+                        self.arcs[self.arcs[a].sister as usize].rcap
+                    } else {
+                        self.arcs[a].rcap
+                    };
+                    if cap <= C::ZERO {
+                        self.set_orphan(v);
+                    }
+                }
+                if old_tree != Tree::Free {
+                    self.make_active(v);
                 }
                 continue;
             }
@@ -998,6 +1093,81 @@ mod tests {
                 }
                 g.maxflow_reuse();
                 g.check_trees().unwrap_or_else(|e| panic!("seed {seed} round {round}: {e}"));
+            }
+        }
+    }
+
+    /// A fresh graph of the same capacities: its flow and its cut (both the smallest and the
+    /// largest source side) are the oracle for a graph changed after a max-flow.
+    fn fresh(tw: &[(i64, i64)], edges: &[(usize, usize, i64, i64)]) -> Graph<i64> {
+        let mut g = Graph::<i64>::new(tw.len(), edges.len());
+        for (v, &(s, t)) in tw.iter().enumerate() {
+            g.add_tweights(v, s, t);
+        }
+        for &(a, b, c, r) in edges {
+            g.add_edge(a, b, c, r);
+        }
+        g.maxflow();
+        g
+    }
+
+    #[test]
+    fn reuse_after_edge_capacity_changes_matches_a_fresh_max_flow() {
+        for seed in 0..300u64 {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let n = rng.random_range(2..=30);
+            let mut g = Graph::<i64>::new(n, 0);
+            let mut tw = vec![(0i64, 0i64); n];
+            for v in 0..n {
+                tw[v] = (rng.random_range(0..=20), rng.random_range(0..=20));
+                g.add_tweights(v, tw[v].0, tw[v].1);
+            }
+            let mut edges = Vec::new();
+            for a in 0..n {
+                for b in a + 1..n {
+                    if rng.random_bool(0.2) {
+                        let e = (a, b, rng.random_range(0..=20), rng.random_range(0..=20));
+                        g.add_edge(a, b, e.2, e.3);
+                        edges.push(e);
+                    }
+                }
+            }
+            g.maxflow();
+            let arcs: Vec<usize> = (0..edges.len()).map(|e| g.arc_of_edge(e)).collect();
+            for round in 0..8 {
+                for _ in 0..rng.random_range(0..=3) {
+                    let v = rng.random_range(0..n);
+                    let new = (rng.random_range(0..=20), rng.random_range(0..=20));
+                    g.add_tweights(v, new.0 - tw[v].0, new.1 - tw[v].1);
+                    tw[v] = new;
+                }
+                for _ in 0..rng.random_range(0..=4) {
+                    if edges.is_empty() {
+                        break;
+                    }
+                    let k = rng.random_range(0..edges.len());
+                    // Often to zero, as an expansion move does when an end becomes fixed.
+                    let (c, r) = if rng.random_bool(0.3) {
+                        (0, 0)
+                    } else {
+                        (rng.random_range(0..=20), rng.random_range(0..=20))
+                    };
+                    g.change_edge_capacity(arcs[k], c - edges[k].2, r - edges[k].3);
+                    (edges[k].2, edges[k].3) = (c, r);
+                }
+                let flow = g.maxflow_reuse();
+                g.check_trees().unwrap_or_else(|e| panic!("seed {seed} round {round}: {e}"));
+                let f = fresh(&tw, &edges);
+                assert_eq!(flow, f.flow(), "seed {seed} round {round}: flow");
+                for v in 0..n {
+                    for free in [Segment::Source, Segment::Sink] {
+                        assert_eq!(
+                            g.what_segment_or(v, free),
+                            f.what_segment_or(v, free),
+                            "seed {seed} round {round}: node {v}, free nodes on the {free:?} side"
+                        );
+                    }
+                }
             }
         }
     }

@@ -167,6 +167,10 @@ pub struct GridSolution {
     /// 0 in reports written before it was recorded.
     #[serde(default)]
     pub capacity_bits: u32,
+    /// Labels whose move graph was kept between their moves (flow recycling,
+    /// [`crate::AlphaExpansionOptions::recycle_flows`]); 0 when every move was built anew.
+    #[serde(default)]
+    pub recycled_labels: usize,
 }
 
 /// Reads, validates and solves an `mrf_grid_v1` file.
@@ -626,6 +630,7 @@ impl GridProblem {
             pairwise_issues: self.pairwise_issues(),
             solve_ms,
             capacity_bits: if narrow { 32 } else { 64 },
+            recycled_labels: r.recycled_labels,
         })
     }
 
@@ -661,6 +666,7 @@ impl GridProblem {
             truncated_terms: r.truncated_terms,
             termination: r.termination,
             elapsed_ms: r.elapsed_ms,
+            recycled_labels: r.recycled_labels,
         })
     }
 

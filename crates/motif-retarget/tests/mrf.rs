@@ -676,6 +676,88 @@ fn grid_solve_on_32_bit_capacities_matches_the_64_bit_solver() {
     assert_eq!((t.energy, t.moves), (s.energy * scale, s.moves));
 }
 
+/// Flow recycling (each label's move graph kept, and its next move started from the last one's
+/// flow) takes exactly the moves of graphs built anew: the same labels, energies, cycle
+/// energies, move counts and truncated terms, on grids (6- and 26-connected, every cycle
+/// strategy, both tie rules, 1 and 2 threads) and on random graphs with edge weights, metric and
+/// non-metric costs and random label orders.
+#[test]
+fn recycled_flows_take_the_moves_of_fresh_graphs() {
+    for (dims, labels, conn, seed, metric) in [
+        ([12, 10, 8], 9, Connectivity::Six, 3, true),
+        ([8, 7, 6], 6, Connectivity::TwentySix, 4, true),
+        ([12, 10, 8], 7, Connectivity::Six, 5, false),
+    ] {
+        let mut p = generate_grid(dims, labels, conn, seed);
+        if !metric {
+            // Truncated quadratic: some move terms are truncated.
+            let l = labels;
+            p.pairwise = (0..l * l).map(|i| ((i / l).abs_diff(i % l).pow(2) as i64).min(5) * 3).collect();
+        }
+        for cycles in [CycleStrategy::Full, CycleStrategy::Adaptive, CycleStrategy::Queue] {
+            for ties in [TieBreak::MostAlpha, TieBreak::FewestAlpha] {
+                for threads in [1, 2] {
+                    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+                    let run = |recycle_flows| {
+                        let options =
+                            AlphaExpansionOptions { cycles, ties, recycle_flows, ..Default::default() };
+                        pool.install(|| p.solve(&options).unwrap())
+                    };
+                    let (kept, fresh) = (run(true), run(false));
+                    let what = format!("{dims:?} {cycles:?} {ties:?} {threads} threads");
+                    assert_eq!((kept.recycled_labels, fresh.recycled_labels), (labels, 0), "{what}");
+                    assert_eq!(kept.truncated_terms > 0, !metric, "{what}: truncated terms");
+                    assert!(kept.moves > labels && kept.accepted_moves > 1, "{what}: several cycles");
+                    assert_eq!(kept.labels_flat, fresh.labels_flat, "{what}: labels");
+                    assert_eq!(
+                        (
+                            kept.energy,
+                            &kept.cycle_energies,
+                            kept.moves,
+                            kept.accepted_moves,
+                            kept.truncated_terms
+                        ),
+                        (
+                            fresh.energy,
+                            &fresh.cycle_energies,
+                            fresh.moves,
+                            fresh.accepted_moves,
+                            fresh.truncated_terms
+                        ),
+                        "{what}: energy, cycle energies, moves, accepted moves, truncated terms"
+                    );
+                }
+            }
+        }
+    }
+    let mut truncated = 0;
+    for seed in 0..200u64 {
+        let mut rng = ChaCha8Rng::seed_from_u64(70_000 + seed);
+        let (n, l) = (rng.random_range(6..=48), rng.random_range(3..=6));
+        let mut t = Tiny::random(&mut rng, PairKind::TruncatedLinear, n, l);
+        if seed % 2 == 1 {
+            // Truncated quadratic: not a metric, so some move terms are truncated.
+            t.v = (0..l * l).map(|i| ((i / l).abs_diff(i % l).pow(2) as i64).min(5) * 3).collect();
+        }
+        let init: Vec<u32> = (0..n).map(|_| rng.random_range(0..l as u32)).collect();
+        let order = if seed % 3 == 0 { LabelOrder::Random { seed } } else { LabelOrder::Sequential };
+        let run = |recycle_flows| {
+            let options = AlphaExpansionOptions { label_order: order, recycle_flows, ..Default::default() };
+            alpha_expansion(&t.energy(), &init, &options).unwrap()
+        };
+        let (kept, fresh) = (run(true), run(false));
+        truncated += kept.truncated_terms;
+        assert_eq!((kept.recycled_labels, fresh.recycled_labels), (l, 0), "seed {seed}");
+        assert_eq!(kept.labels, fresh.labels, "seed {seed}: labels");
+        assert_eq!(
+            (kept.energy, &kept.cycle_energies, kept.moves, kept.accepted_moves, kept.truncated_terms),
+            (fresh.energy, &fresh.cycle_energies, fresh.moves, fresh.accepted_moves, fresh.truncated_terms),
+            "seed {seed}"
+        );
+    }
+    assert!(truncated > 0, "no non-submodular term was met");
+}
+
 /// Solving several moves at once (one per thread) and keeping them up to the first success gives
 /// exactly the sequential algorithm's result, move for move, with every cycle strategy.
 #[test]

@@ -26,6 +26,7 @@ pub fn solve(a: MrfSolveArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             TiesArg::MostAlpha => TieBreak::MostAlpha,
             TiesArg::FewestAlpha => TieBreak::FewestAlpha,
         },
+        recycle_flows: !a.no_recycle,
         ..Default::default()
     };
     let sol = match solve_grid_file(&a.problem, &options) {
@@ -75,7 +76,12 @@ pub fn solve(a: MrfSolveArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         sol.accepted_moves,
         sol.termination.as_str()
     );
-    println!("  solve        {:.1} ms ({}-bit capacities)", sol.solve_ms, sol.capacity_bits);
+    let recycled = match sol.recycled_labels {
+        0 => String::new(),
+        k if k == sol.num_labels => ", flows recycled".to_string(),
+        k => format!(", flows recycled for {k} of {} labels", sol.num_labels),
+    };
+    println!("  solve        {:.1} ms ({}-bit capacities{recycled})", sol.solve_ms, sol.capacity_bits);
     if sol.truncated_terms > 0 {
         println!("  note         {} non-metric pairwise terms truncated", sol.truncated_terms);
     }
