@@ -500,8 +500,8 @@ struct Recycled<C: Capacity> {
 }
 
 /// Memory for the kept move graphs of [`Recycled`] (labels past it get a fresh graph per move):
-/// 256 MB hold all 64 labels' graphs of the 30³ 6-connected `mrf_grid_v1` benchmark (2.9 MB
-/// each on 32-bit capacities).
+/// 256 MB hold all 64 labels' graphs of the 30³ 6-connected `mrf_grid_v1` benchmark (about
+/// 3.3 MB each on 32-bit capacities) and 26 of the 26-connected one's.
 const RECYCLE_BUDGET_BYTES: usize = 256 << 20;
 
 /// A kept move graph is rebuilt from scratch, rather than updated, when more than one site in
@@ -1228,6 +1228,11 @@ impl<C: Capacity> MoveWorker<C> {
         if self.net_delta.len() != n {
             self.net_delta.clear();
             self.net_delta.resize(n, C::ZERO);
+        } else {
+            // Zero again what an update stopped by an error left behind.
+            for &p in &self.touched {
+                self.net_delta[p as usize] = C::ZERO;
+            }
         }
         self.touched.clear();
         let (delta, touched) = (&mut self.net_delta, &mut self.touched);
