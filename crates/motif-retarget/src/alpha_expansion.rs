@@ -501,7 +501,7 @@ struct Recycled<C: Capacity> {
 
 /// Memory for the kept move graphs of [`Recycled`] (labels past it get a fresh graph per move):
 /// 256 MB hold all 64 labels' graphs of the 30³ 6-connected `mrf_grid_v1` benchmark (about
-/// 3.3 MB each on 32-bit capacities) and 26 of the 26-connected one's.
+/// 3.6 MB each on 32-bit capacities) and 25 of the 26-connected one's.
 const RECYCLE_BUDGET_BYTES: usize = 256 << 20;
 
 /// A kept move graph is rebuilt from scratch, rather than updated, when more than one site in
@@ -1175,12 +1175,21 @@ impl<C: Capacity> MoveWorker<C> {
         if rec.labels.len() == n {
             self.dirty.extend((0..n as u32).filter(|&p| rec.labels[p as usize] != labels[p as usize]));
         }
-        if rec.labels.len() != n || self.dirty.len() * RECYCLE_REBUILD > n {
-            rebuild_recycled(rec, energy, labels, alpha, hard)?;
+        let rebuild = rec.labels.len() != n || self.dirty.len() * RECYCLE_REBUILD > n;
+        let built = if rebuild {
+            rebuild_recycled(rec, energy, labels, alpha, hard)
+        } else {
+            self.update_recycled(rec, energy, incidence, labels, alpha, hard)
+        };
+        if let Err(e) = built {
+            // A graph half brought up to date is rebuilt next time.
+            rec.labels.clear();
+            return Err(e);
+        }
+        if rebuild {
             rec.graph.maxflow();
             rec.graph.release_build_buffers();
         } else {
-            self.update_recycled(rec, energy, incidence, labels, alpha, hard)?;
             rec.graph.maxflow_reuse();
         }
         let free_to = match ties {

@@ -310,9 +310,10 @@ impl<C: Capacity> Graph<C> {
     }
 
     /// About how many bytes a graph of `nodes` nodes and `edges` edges keeps after a max-flow
-    /// and [`Graph::release_build_buffers`]: nodes, arcs, their index and the queues.
+    /// and [`Graph::release_build_buffers`]: nodes, arcs, their index, the active and orphan
+    /// queues and the list of changed nodes.
     pub fn bytes_for(nodes: usize, edges: usize) -> usize {
-        nodes * (std::mem::size_of::<Node<C>>() + 12) + edges * (2 * std::mem::size_of::<Arc<C>>() + 4)
+        nodes * (std::mem::size_of::<Node<C>>() + 24) + edges * (2 * std::mem::size_of::<Arc<C>>() + 4)
     }
 
     /// Frees the buffer that holds edges until the adjacency array is built (it is allocated
@@ -504,7 +505,10 @@ impl<C: Capacity> Graph<C> {
         self.edge_arc.clear();
         let in_order = self.arcs.is_empty();
         if !self.arcs.is_empty() {
-            // Edges added after a run: re-collect the existing arcs with their residuals.
+            // Edges added after a run: re-collect the existing arcs with their residuals. The
+            // trees name arcs by index, so the next run grows them anew (also when this is
+            // called before it, by `arc_of_edge` or `change_edge_capacity`).
+            self.trees_valid = false;
             for v in 0..self.arc_start.len().saturating_sub(1) {
                 for a in self.arc_start[v] as usize..self.arc_start[v + 1] as usize {
                     let arc = self.arcs[a];
@@ -1169,6 +1173,38 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    /// Edges added after a max-flow renumber the arcs; building the adjacency array before the
+    /// next run (as `release_build_buffers` does) must not leave trees naming the old arcs.
+    #[test]
+    fn edges_added_after_a_run_and_built_early_grow_the_trees_anew() {
+        for seed in 0..300u64 {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let n = rng.random_range(2..=20);
+            let tw: Vec<(i64, i64)> =
+                (0..n).map(|_| (rng.random_range(0..=20), rng.random_range(0..=20))).collect();
+            let mut edges = Vec::new();
+            let add = |rng: &mut rand_chacha::ChaCha8Rng, edges: &mut Vec<(usize, usize, i64, i64)>| {
+                let a = rng.random_range(0..n);
+                let b = (a + rng.random_range(1..n)) % n;
+                edges.push((a, b, rng.random_range(0..=20), rng.random_range(0..=20)));
+            };
+            for _ in 0..2 * n {
+                add(&mut rng, &mut edges);
+            }
+            let mut g = fresh(&tw, &edges);
+            let before = edges.len();
+            for _ in 0..rng.random_range(1..=n) {
+                add(&mut rng, &mut edges);
+            }
+            for &(a, b, c, r) in &edges[before..] {
+                g.add_edge(a, b, c, r);
+            }
+            g.release_build_buffers();
+            assert_eq!(g.maxflow_reuse(), fresh(&tw, &edges).flow(), "seed {seed}");
+            g.check_trees().unwrap_or_else(|e| panic!("seed {seed}: {e}"));
         }
     }
 
