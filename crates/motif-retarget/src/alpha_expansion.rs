@@ -113,6 +113,17 @@ pub enum TieBreak {
     FewestAlpha,
 }
 
+impl TieBreak {
+    /// The side of the cut a move puts the sites in neither search tree on (free: either side
+    /// gives a minimum cut); the sink side switches to α.
+    fn free_side(self) -> Segment {
+        match self {
+            TieBreak::MostAlpha => Segment::Sink,
+            TieBreak::FewestAlpha => Segment::Source,
+        }
+    }
+}
+
 /// Options of [`alpha_expansion`] and [`AlphaExpansion::solve`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -1123,10 +1134,7 @@ impl<C: Capacity> MoveWorker<C> {
         // Sink side = switch to α. Every node the source cannot reach is on the sink side of a
         // minimum cut, and so is every node that reaches the sink; the nodes in neither set
         // (free) are ties.
-        let free_to = match ties {
-            TieBreak::MostAlpha => Segment::Sink,
-            TieBreak::FewestAlpha => Segment::Source,
-        };
+        let free_to = ties.free_side();
         self.switched.clear();
         for (v, &p) in self.site_of.iter().enumerate() {
             if self.graph.what_segment_or(v, free_to) == Segment::Sink {
@@ -1192,10 +1200,7 @@ impl<C: Capacity> MoveWorker<C> {
         } else {
             rec.graph.maxflow_reuse();
         }
-        let free_to = match ties {
-            TieBreak::MostAlpha => Segment::Sink,
-            TieBreak::FewestAlpha => Segment::Source,
-        };
+        let free_to = ties.free_side();
         self.switched.clear();
         for (p, &l) in labels.iter().enumerate() {
             if l != alpha && rec.graph.what_segment_or(p, free_to) == Segment::Sink {
@@ -1367,32 +1372,15 @@ impl<C: Capacity> MoveWorker<C> {
                         continue; // stored at the other end
                     }
                     let (vs, vt) = if s == p { (v, vo as usize) } else { (vo as usize, v) };
-                    let ea = energy.pairwise_clamped(k, s, t, ls, lt, hard)?;
-                    let mut eb = energy.pairwise_clamped(k, s, t, ls, a, hard)?;
-                    let ec = energy.pairwise_clamped(k, s, t, a, lt, hard)?;
-                    let ed = energy.pairwise_clamped(k, s, t, a, a, hard)?;
-                    if ea + ed > eb + ec {
-                        // Not submodular: raise B to A + D − C (an upper bound, exact at the
-                        // current labelling).
-                        truncated += 1;
-                        eb = ea + ed - ec;
-                    }
-                    let k_total = eb + ec - ea - ed;
-                    let mut e = ec - ea;
-                    if e < C::ZERO {
-                        e = C::ZERO;
-                    } else if e > k_total {
-                        e = k_total;
-                    }
-                    let (cap, rev_cap) =
-                        if k_total > C::ZERO { (k_total - e, e) } else { (C::ZERO, C::ZERO) };
+                    let term = binary_term(energy, k, ls, lt, a, hard)?;
+                    truncated += usize::from(term.truncated);
                     terms[i - base] = EdgeTerm {
                         vs: vs as u32,
                         vt: vt as u32,
-                        cap,
-                        rev_cap,
-                        ds: ec - ea - e,
-                        dt: ed - ec + e,
+                        cap: term.cap,
+                        rev_cap: term.rev_cap,
+                        ds: term.us,
+                        dt: term.ut,
                     };
                 }
             }
@@ -1523,30 +1511,48 @@ where
             term.ut = energy.pairwise_clamped(k, s, t, ls, a, hard)?
                 - energy.pairwise_clamped(k, s, t, ls, lt, hard)?;
         }
-        (true, true) => {
-            let ea = energy.pairwise_clamped(k, s, t, ls, lt, hard)?;
-            let mut eb = energy.pairwise_clamped(k, s, t, ls, a, hard)?;
-            let ec = energy.pairwise_clamped(k, s, t, a, lt, hard)?;
-            let ed = energy.pairwise_clamped(k, s, t, a, a, hard)?;
-            if ea + ed > eb + ec {
-                term.truncated = true;
-                eb = ea + ed - ec;
-            }
-            let k_total = eb + ec - ea - ed;
-            let mut e = ec - ea;
-            if e < C::ZERO {
-                e = C::ZERO;
-            } else if e > k_total {
-                e = k_total;
-            }
-            if k_total > C::ZERO {
-                (term.cap, term.rev_cap) = (k_total - e, e);
-            }
-            term.us = ec - ea - e;
-            term.ut = ed - ec + e;
-        }
+        (true, true) => term = binary_term(energy, k, ls, lt, a, hard)?,
     }
     Ok(term)
+}
+
+/// The move's binary term of edge `k` = [s, t] between two sites that may both switch (labels
+/// `ls`, `lt`; α = `a`), split into arcs and unary parts as [`MoveWorker::compute_terms`]
+/// documents: truncated (B raised to A + D − C) when not submodular.
+#[inline]
+fn binary_term<C, D, V>(
+    energy: &MrfEnergy<'_, C, D, V>,
+    k: usize,
+    ls: usize,
+    lt: usize,
+    a: usize,
+    hard: C,
+) -> Result<SiteEdgeTerm<C>>
+where
+    C: Capacity,
+    D: Fn(usize, usize) -> C,
+    V: Fn(usize, usize, usize, usize) -> C,
+{
+    let [s, t] = energy.edges[k];
+    let (s, t) = (s as usize, t as usize);
+    let ea = energy.pairwise_clamped(k, s, t, ls, lt, hard)?;
+    let mut eb = energy.pairwise_clamped(k, s, t, ls, a, hard)?;
+    let ec = energy.pairwise_clamped(k, s, t, a, lt, hard)?;
+    let ed = energy.pairwise_clamped(k, s, t, a, a, hard)?;
+    let truncated = ea + ed > eb + ec;
+    if truncated {
+        // Not submodular: raise B to A + D − C (an upper bound, exact at the current labelling).
+        eb = ea + ed - ec;
+    }
+    let k_total = eb + ec - ea - ed;
+    let mut e = ec - ea;
+    if e < C::ZERO {
+        e = C::ZERO;
+    } else if e > k_total {
+        e = k_total;
+    }
+    let (cap, rev_cap) = if k_total > C::ZERO { (k_total - e, e) } else { (C::ZERO, C::ZERO) };
+    Ok(SiteEdgeTerm { cap, rev_cap, us: ec - ea - e, ut: ed - ec + e, truncated })
 }
 
 /// Builds a kept move graph from scratch for `labels` (every site a node, every edge a pair of
