@@ -1072,21 +1072,9 @@ mod tests {
     fn reuse_keeps_tree_invariants() {
         for seed in 0..300u64 {
             let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-            let n = rng.random_range(2..=30);
-            let mut g = Graph::<i64>::new(n, 0);
-            let mut tw = vec![(0i64, 0i64); n];
-            for v in 0..n {
-                tw[v] = (rng.random_range(0..=20), rng.random_range(0..=20));
-                g.add_tweights(v, tw[v].0, tw[v].1);
-            }
-            for a in 0..n {
-                for b in a + 1..n {
-                    if rng.random_bool(0.2) {
-                        g.add_edge(a, b, rng.random_range(0..=20), rng.random_range(0..=20));
-                    }
-                }
-            }
-            g.maxflow();
+            let (mut tw, edges) = random_network(&mut rng);
+            let n = tw.len();
+            let mut g = fresh(&tw, &edges);
             g.check_trees().unwrap_or_else(|e| panic!("seed {seed} fresh: {e}"));
             for round in 0..8 {
                 for _ in 0..rng.random_range(1..=4) {
@@ -1099,6 +1087,22 @@ mod tests {
                 g.check_trees().unwrap_or_else(|e| panic!("seed {seed} round {round}: {e}"));
             }
         }
+    }
+
+    /// A random network of 2–30 nodes: terminal capacities (source, sink) per node and edges
+    /// (a, b, capacity a → b, capacity b → a), each pair joined with probability 0.2.
+    fn random_network(rng: &mut rand_chacha::ChaCha8Rng) -> (Vec<(i64, i64)>, Vec<(usize, usize, i64, i64)>) {
+        let n = rng.random_range(2..=30);
+        let tw = (0..n).map(|_| (rng.random_range(0..=20), rng.random_range(0..=20))).collect();
+        let mut edges = Vec::new();
+        for a in 0..n {
+            for b in a + 1..n {
+                if rng.random_bool(0.2) {
+                    edges.push((a, b, rng.random_range(0..=20), rng.random_range(0..=20)));
+                }
+            }
+        }
+        (tw, edges)
     }
 
     /// A fresh graph of the same capacities: its flow and its cut (both the smallest and the
@@ -1119,24 +1123,9 @@ mod tests {
     fn reuse_after_edge_capacity_changes_matches_a_fresh_max_flow() {
         for seed in 0..300u64 {
             let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-            let n = rng.random_range(2..=30);
-            let mut g = Graph::<i64>::new(n, 0);
-            let mut tw = vec![(0i64, 0i64); n];
-            for v in 0..n {
-                tw[v] = (rng.random_range(0..=20), rng.random_range(0..=20));
-                g.add_tweights(v, tw[v].0, tw[v].1);
-            }
-            let mut edges = Vec::new();
-            for a in 0..n {
-                for b in a + 1..n {
-                    if rng.random_bool(0.2) {
-                        let e = (a, b, rng.random_range(0..=20), rng.random_range(0..=20));
-                        g.add_edge(a, b, e.2, e.3);
-                        edges.push(e);
-                    }
-                }
-            }
-            g.maxflow();
+            let (mut tw, mut edges) = random_network(&mut rng);
+            let n = tw.len();
+            let mut g = fresh(&tw, &edges);
             let arcs: Vec<usize> = (0..edges.len()).map(|e| g.arc_of_edge(e)).collect();
             for round in 0..8 {
                 for _ in 0..rng.random_range(0..=3) {
