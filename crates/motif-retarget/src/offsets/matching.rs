@@ -78,6 +78,13 @@ impl DescriptorDistances {
         (d.clamp(0.0, 2.0) * QUANT).round() as u16
     }
 
+    /// A table of `n` features from its packed upper triangle (tests of the lookups).
+    #[cfg(test)]
+    pub(crate) fn from_packed(n: usize, packed: Vec<u16>) -> Self {
+        assert_eq!(packed.len(), n * n.saturating_sub(1) / 2);
+        DescriptorDistances { compact: (0..n as u32).collect(), n, packed }
+    }
+
     /// A quantised distance in descriptor units.
     #[inline]
     pub fn dequantise(q: u16) -> f64 {

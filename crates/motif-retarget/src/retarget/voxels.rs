@@ -203,12 +203,90 @@ impl VoxelDescriptors {
     }
 }
 
+/// Below this many entries (`|a| · |b|`, sets of about 16 features each), [`hausdorff_lookup`]
+/// reads the whole block once for both directions: the early break of the larger sets reads
+/// each direction separately and saves nothing on a few entries (on the dense baseline's
+/// voxels of the generated shelf, which hold about four features each, it read 34% more).
+const EXHAUSTIVE_BELOW: usize = 256;
+
 /// d_H from a distance table: the larger of the two directed distances
-/// `max_a min_b d(a, b)` and `max_b min_a d(a, b)` over the quantised table entries (a `u16`
-/// minimum per row and per column). Both key lists are ascending (rows are stored in feature
-/// order), so for each `i` of `a` the keys of `b` above `i` are read along row `i` of the table
-/// and those below along column `i`, without a branch per entry.
+/// `max_a min_b d(a, b)` and `max_b min_a d(a, b)` over the quantised table entries, exact.
+///
+/// Each directed distance ([`directed_lookup`]) breaks off its scan of `b` as soon as an entry
+/// is no larger than the largest minimum found so far, since that `a` cannot raise the maximum
+/// (Taha and Hanbury, "An efficient algorithm for calculating the exact Hausdorff distance",
+/// 2015), and the second direction starts from the first one's value. Small sets are read
+/// whole ([`EXHAUSTIVE_BELOW`]). The step's lookups on the generated facade (offsets, +1 cell)
+/// read 35,039 entries instead of 213,505, on the gridbeam shelf 230,032 instead of 2,092,421.
 fn hausdorff_lookup(table: &DescriptorDistances, a: &[u32], b: &[u32]) -> f64 {
+    if a.len() * b.len() < EXHAUSTIVE_BELOW {
+        return DescriptorDistances::dequantise(exhaustive_lookup(table, a, b));
+    }
+    let forward = directed_lookup(table, a, b, 0);
+    DescriptorDistances::dequantise(directed_lookup(table, b, a, forward))
+}
+
+/// `max(floor, max_{i ∈ a} min_{j ∈ b} d(i, j))` with the early break of [`hausdorff_lookup`].
+///
+/// The members of `a` are visited in a fixed scattered order (a stride of about 0.618 |a|,
+/// coprime to |a|), as the early break wants an order unrelated to the sets' layout: the
+/// largest minima then turn up early, and the breaks with them (on the facade above, 19% fewer
+/// reads than in key order). The scan of `b` for each `a` starts where the previous one found
+/// its nearest entry, and goes round from there in at most three runs on which the order of
+/// the keys is fixed (keys below `i` are read along column `i` of the table, keys above along
+/// row `i`), so the reads have no branch on it.
+fn directed_lookup(table: &DescriptorDistances, a: &[u32], b: &[u32], floor: u16) -> u16 {
+    let n = a.len();
+    let mut stride = ((n as f64 * 0.618) as usize) | 1;
+    while gcd(stride, n) != 1 {
+        stride += 2;
+    }
+    let mut worst = floor;
+    let mut start = 0;
+    for q in 0..n {
+        let i = a[q * stride % n];
+        let split = b.partition_point(|&j| j < i);
+        // (first index, run, whether its keys lie below i)
+        let runs: [(usize, &[u32], bool); 3] = if start <= split {
+            [(start, &b[start..split], true), (split, &b[split..], false), (0, &b[..start], true)]
+        } else {
+            [(start, &b[start..], false), (0, &b[..split], true), (split, &b[split..start], false)]
+        };
+        let mut nearest = u16::MAX;
+        let mut at = start;
+        'scan: for (first, run, below) in runs {
+            for (k, &j) in run.iter().enumerate() {
+                let d = if below {
+                    table.quantised_ordered(j, i)
+                } else if j == i {
+                    0
+                } else {
+                    table.quantised_ordered(i, j)
+                };
+                if d < nearest {
+                    nearest = d;
+                    at = first + k;
+                    if d <= worst {
+                        break 'scan;
+                    }
+                }
+            }
+        }
+        worst = worst.max(nearest);
+        start = at;
+    }
+    worst
+}
+
+fn gcd(a: usize, b: usize) -> usize {
+    if b == 0 { a } else { gcd(b, a % b) }
+}
+
+/// Both directed distances in one pass over the `|a| × |b|` entries (a `u16` minimum per row
+/// and per column). Both key lists are ascending (rows are stored in feature order), so for
+/// each `i` of `a` the keys of `b` above `i` are read along row `i` of the table and those
+/// below along column `i`, without a branch per entry.
+fn exhaustive_lookup(table: &DescriptorDistances, a: &[u32], b: &[u32]) -> u16 {
     let mut col_min = vec![u16::MAX; b.len()];
     let mut worst = 0u16;
     for &i in a {
@@ -228,8 +306,7 @@ fn hausdorff_lookup(table: &DescriptorDistances, a: &[u32], b: &[u32]) -> f64 {
         }
         worst = worst.max(row_min);
     }
-    worst = col_min.iter().fold(worst, |w, &c| w.max(c));
-    DescriptorDistances::dequantise(worst)
+    col_min.iter().fold(worst, |w, &c| w.max(c))
 }
 
 /// Samples the normalised mesh, describes its features with SHOT and groups the descriptors by
@@ -561,6 +638,34 @@ mod tests {
             let want = directed(&a, &b).max(directed(&b, &a));
             let got = hausdorff(&a, &b);
             assert!((got - want).abs() < 1e-3 * want.max(1.0), "{na}x{nb}: {got} vs {want}");
+        }
+    }
+
+    /// The early-break lookup gives exactly the exhaustive scan's d_H, on random tables with
+    /// few distinct values (many ties) and with many, for sets that share keys or not, of
+    /// sizes 1 to 40.
+    #[test]
+    fn hausdorff_lookup_equals_the_exhaustive_scan() {
+        use rand::{Rng, SeedableRng, seq::index::sample};
+        use rand_chacha::ChaCha8Rng;
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let n = 90;
+        for round in 0..400 {
+            let spread: u16 = if round % 2 == 0 { 6 } else { u16::MAX };
+            let packed = (0..n * (n - 1) / 2).map(|_| rng.random_range(0..=spread)).collect();
+            let table = DescriptorDistances::from_packed(n, packed);
+            let pick = |rng: &mut ChaCha8Rng| {
+                let k = rng.random_range(1..=40);
+                let mut keys: Vec<u32> = sample(rng, n, k).into_iter().map(|i| i as u32).collect();
+                keys.sort_unstable();
+                keys
+            };
+            let (a, b) = (pick(&mut rng), pick(&mut rng));
+            let directed = |a: &[u32], b: &[u32]| {
+                a.iter().map(|&i| b.iter().map(|&j| table.quantised(i, j)).min().unwrap()).max().unwrap()
+            };
+            let want = DescriptorDistances::dequantise(directed(&a, &b).max(directed(&b, &a)));
+            assert_eq!(hausdorff_lookup(&table, &a, &b), want, "round {round}: {a:?} vs {b:?}");
         }
     }
 
