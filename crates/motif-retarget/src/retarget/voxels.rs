@@ -561,7 +561,7 @@ pub(crate) fn squared_norms(rows: &[f32]) -> Vec<f32> {
         .collect()
 }
 
-/// [`hausdorff`] with the rows' squared norms given (`norm_a[i]` = ‖a_i‖², from
+/// d_H between two descriptor sets (`#rows × 352`, row-major) with the rows' squared norms given (`norm_a[i]` = ‖a_i‖², from
 /// [`squared_norms`]), so that a voxel compared with many others computes them once.
 pub(crate) fn hausdorff_with_norms(a: &[f32], norm_a: &[f32], b: &[f32], norm_b: &[f32]) -> f64 {
     let (na, nb) = (a.len() / SHOT_LEN, b.len() / SHOT_LEN);
