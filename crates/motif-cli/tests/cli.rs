@@ -645,6 +645,26 @@ fn symmetry_detect_writes_an_annotation_and_mrf_solve_reports_energy() {
     let o = motif(&["symmetry", "check", "chair.obj", "skew.json"], d.path());
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("stretch") && !stderr(&o).contains("within its tolerance"), "{}", stderr(&o));
+    // The chair's mirror moved off its plane (still a reflection: x -> Rx + t + 2 delta n, n the
+    // mirror's normal) does not fit: exit 1, and the --json report that says so stays.
+    let g = &ann["symmetries"][0]["generators"][0];
+    let r: Vec<Vec<f64>> = (0..3).map(|i| (0..4).map(|j| g[i][j].as_f64().unwrap()).collect()).collect();
+    let k = (0..3).max_by(|&a, &b| (1.0 - r[a][a]).total_cmp(&(1.0 - r[b][b]))).unwrap();
+    let m_kk = (1.0 - r[k][k]) / 2.0;
+    let normal: Vec<f64> =
+        (0..3).map(|i| (f64::from(u8::from(i == k)) - r[i][k]) / 2.0 / m_kk.sqrt()).collect();
+    let mut moved = ann.clone();
+    for i in 0..3 {
+        moved["symmetries"][0]["generators"][0][i][3] = serde_json::json!(r[i][3] + 2.0 * 0.05 * normal[i]);
+    }
+    std::fs::write(d.path().join("moved.json"), moved.to_string()).unwrap();
+    let o = motif(&["symmetry", "check", "chair.obj", "moved.json", "--json", "moved.report.json"], d.path());
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("within its tolerance"), "{}", stderr(&o));
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.path().join("moved.report.json")).expect("the report stays"))
+            .unwrap();
+    assert_eq!(report["ok"], false, "{report}");
     // A typo in a field is named, not "did not match any variant of untagged enum".
     std::fs::write(d.path().join("typo.json"), skew.replace("generators", "generator")).unwrap();
     let o = motif(&["symmetry", "check", "chair.obj", "typo.json"], d.path());
@@ -894,6 +914,29 @@ fn retarget_adds_shelf_cells_and_refuses_models_without_repetition() {
         d.path(),
     ));
     assert_eq!(r["steps"], serde_json::json!([0, 1, 0]), "{}", r["output_size"]);
+    // Turned a quarter turn about z, the shelf's 5 columns lie along y and its 4 shelves along
+    // x, while the analysis still finds the columns' offset first: an error about a shrink names
+    // the entry of --steps the user typed, with that axis's count.
+    let turned: String = std::fs::read_to_string(d.path().join("shelf.obj"))
+        .unwrap()
+        .lines()
+        .map(|l| match l.strip_prefix("v ") {
+            Some(xyz) => {
+                let c: Vec<f64> = xyz.split_whitespace().map(|x| x.parse().unwrap()).collect();
+                format!("v {} {} {}\n", -c[1], c[0], c[2])
+            }
+            None => format!("{l}\n"),
+        })
+        .collect();
+    std::fs::write(d.path().join("turned.obj"), turned).unwrap();
+    for (steps, says) in [
+        ("-50,0,0", "steps[0] = -50 shrinks direction 0 from 4"),
+        ("0,-50,0", "steps[1] = -50 shrinks direction 1 from 5"),
+    ] {
+        let o = motif(&["retarget", "turned.obj", &format!("--steps={steps}"), "-o", "t2.obj"], d.path());
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains(says), "{steps}: {}", stderr(&o));
+    }
     // Dense baseline: many more nodes and labels.
     let r = json_of(&motif(
         &["retarget", "shelf.obj", "--steps", "1,1", "--method", "dense", "-o", "dense.obj", "--json"],
@@ -1884,6 +1927,12 @@ fn option_errors_speak_in_the_users_terms() {
         assert!(stderr(&o).contains("of the diagonal") && stderr(&o).contains("1/16"), "{}", stderr(&o));
         assert!(!d.path().join("d.json").exists());
     }
+    // On a mesh too, and --force, which the error offers, lifts the limit there as well.
+    let o = motif(&["detect", "s.obj", "-o", "d.json", "--epsilon", "0.07"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("pass --force") && !d.path().join("d.json").exists(), "{}", stderr(&o));
+    let o = motif(&["--force", "detect", "s.obj", "-o", "d.json", "--epsilon", "0.07"], d.path());
+    assert!(o.status.success() && d.path().join("d.json").exists(), "{}", stderr(&o));
     let o = motif(&["mrf", "solve", "nope.json"], d.path());
     assert_eq!(stderr(&o).matches("nope.json").count(), 1, "{}", stderr(&o));
 }

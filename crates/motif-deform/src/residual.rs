@@ -7,79 +7,50 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use motif_core::TriMesh;
-use motif_core::geometry::{Mat4, Point3, add, closest_point_on_triangle, dist, scale, transform_point};
+use motif_core::geometry::{Mat4, Point3, add, dist, scale, transform_point};
 use motif_core::procedural::SymmetryAnnotation;
 use motif_core::spatial::KdTree;
 
 use crate::annotation::{ResolvedAnnotation, ResolvedKind, SymmetryElement, check_mesh, resolve_symmetry};
 use crate::error::Result;
+use crate::symmetry_detect::bvh::TriangleBvh;
 
 /// Distances from points to a triangle mesh's surface.
-pub(crate) struct SurfaceDistance<'a> {
-    mesh: &'a TriMesh,
+///
+/// The nearest vertex bounds the distance from above (it lies on the surface); a bounding-volume
+/// hierarchy over the triangles ([`TriangleBvh`], branch and bound, exact) then finds any closer
+/// point. It replaced a search of every triangle at a vertex within that bound plus the mesh's
+/// longest edge: on CAD meshes, whose longest edges (fanned faces) reach 13–18% of the diagonal,
+/// that ball held a quarter of the mesh, and `motif symmetry check` took 62 s on the 9,210-vertex
+/// CGAL turbine (C10v, 19 transforms).
+pub(crate) struct SurfaceDistance {
     tree: KdTree,
-    /// CSR vertex → incident triangles.
-    vt_start: Vec<u32>,
-    vt: Vec<u32>,
-    max_edge: f64,
+    /// `None` when the mesh has no triangle.
+    bvh: Option<TriangleBvh>,
     exact_below: f64,
 }
 
-impl<'a> SurfaceDistance<'a> {
-    pub(crate) fn new(mesh: &'a TriMesh) -> Result<Self> {
+impl SurfaceDistance {
+    pub(crate) fn new(mesh: &TriMesh) -> Result<Self> {
         let tree = KdTree::new(&mesh.positions)?;
-        let n = mesh.num_vertices();
-        let mut count = vec![0u32; n + 1];
-        let mut max_edge: f64 = 0.0;
-        for (f, t) in mesh.triangles.iter().enumerate() {
-            for &v in t {
-                count[v as usize + 1] += 1;
-            }
-            let [a, b, c] = mesh.corners(f);
-            max_edge = max_edge.max(dist(a, b)).max(dist(b, c)).max(dist(c, a));
-        }
-        for i in 0..n {
-            count[i + 1] += count[i];
-        }
-        let mut fill = count.clone();
-        let mut vt = vec![0u32; count[n] as usize];
-        for (f, t) in mesh.triangles.iter().enumerate() {
-            for &v in t {
-                vt[fill[v as usize] as usize] = f as u32;
-                fill[v as usize] += 1;
-            }
-        }
-        Ok(SurfaceDistance {
-            mesh,
-            tree,
-            vt_start: count,
-            vt,
-            max_edge,
-            exact_below: 1e-12 * mesh.diagonal(),
-        })
+        let triangles: Vec<[Point3; 3]> = (0..mesh.num_triangles()).map(|f| mesh.corners(f)).collect();
+        Ok(SurfaceDistance { tree, bvh: TriangleBvh::new(&triangles), exact_below: 1e-12 * mesh.diagonal() })
     }
 
     pub(crate) fn tree(&self) -> &KdTree {
         &self.tree
     }
 
-    /// Distance from `q` to the closest point on the surface (exactly: every triangle with a vertex
-    /// within `d_vertex + longest edge` is examined). Points closer than `10⁻¹² ×` the diagonal to
-    /// a vertex return that distance without looking at triangles.
+    /// Distance from `q` to the closest point on the surface, exact. Points closer than
+    /// `10⁻¹² ×` the diagonal to a vertex return that distance without looking at triangles.
     pub(crate) fn distance(&self, q: Point3) -> f64 {
         let nv = self.tree.nearest(q);
-        if nv.distance <= self.exact_below || self.mesh.triangles.is_empty() {
+        if nv.distance <= self.exact_below {
             return nv.distance;
         }
-        let mut best = nv.distance;
-        for n in self.tree.within_unsorted(q, nv.distance + self.max_edge) {
-            let v = n.index;
-            for &f in &self.vt[self.vt_start[v] as usize..self.vt_start[v + 1] as usize] {
-                let [a, b, c] = self.mesh.corners(f as usize);
-                best = best.min(dist(q, closest_point_on_triangle(q, a, b, c)));
-            }
-        }
-        best
+        let Some(bvh) = &self.bvh else { return nv.distance };
+        bvh.closest(q, nv.distance * nv.distance, 0.0)
+            .map_or(nv.distance, |hit| hit.d2.sqrt().min(nv.distance))
     }
 }
 
@@ -442,6 +413,46 @@ pub fn symmetry_residual(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use motif_core::geometry::closest_point_on_triangle;
+
+    /// The hierarchy's distance equals a scan of every triangle, for points near and far from
+    /// a mesh with long fanned triangles (the fan's hub) and on it (at vertices and inside
+    /// triangles).
+    #[test]
+    fn surface_distance_equals_a_scan_of_every_triangle() {
+        use rand::{Rng, SeedableRng};
+        for name in ["fan", "chair", "windmill"] {
+            let mesh = motif_core::procedural::generate(name, 0).expect(name).mesh;
+            let surface = SurfaceDistance::new(&mesh).expect("surface");
+            let bb = mesh.aabb().expect("bounds");
+            let diag = mesh.diagonal();
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+            for k in 0..600 {
+                let q = match k % 3 {
+                    0 => std::array::from_fn(|i| {
+                        rng.random_range(bb.min[i] - 0.1 * diag..bb.max[i] + 0.1 * diag)
+                    }),
+                    1 => mesh.positions[rng.random_range(0..mesh.num_vertices())],
+                    _ => {
+                        let [a, b, c] = mesh.corners(rng.random_range(0..mesh.num_triangles()));
+                        let (u, v): (f64, f64) = (rng.random(), rng.random());
+                        let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
+                        std::array::from_fn(|i| {
+                            a[i] + u * (b[i] - a[i]) + v * (c[i] - a[i]) + 1e-3 * diag * (u - 0.5)
+                        })
+                    }
+                };
+                let scan = (0..mesh.num_triangles())
+                    .map(|f| {
+                        let [a, b, c] = mesh.corners(f);
+                        dist(q, closest_point_on_triangle(q, a, b, c))
+                    })
+                    .fold(f64::INFINITY, f64::min);
+                let got = surface.distance(q);
+                assert!((got - scan).abs() <= 1e-12 * diag, "{name}, point {k}: {got} vs {scan}");
+            }
+        }
+    }
 
     #[test]
     fn closest_point_regions() {

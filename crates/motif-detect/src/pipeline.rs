@@ -455,18 +455,20 @@ impl Detection {
 pub const MIN_MESH_SAMPLES: usize = 100;
 
 /// Detects building blocks in a mesh: samples `mesh_samples` points on its surface (with face
-/// normals) and runs [`detect`]; instance point indices refer to those samples.
+/// normals) and runs [`detect`]; instance point indices refer to those samples. `force` lifts
+/// the limits on ε, as for [`detect`].
 pub fn detect_mesh(
     mesh: &TriMesh,
     scene: &str,
     o: &DetectOptions,
     progress: &dyn Progress,
+    force: bool,
 ) -> Result<Detection> {
     o.validate()?;
     let s = sample_surface(mesh, o.mesh_samples, o.seed)?;
     let mut cloud = PointCloud::from_positions(s.points);
     cloud.normals = Some(s.normals);
-    let mut d = detect(&cloud, scene, o, progress, false)?;
+    let mut d = detect(&cloud, scene, o, progress, force)?;
     d.report.vertex_snap = refine_on_vertices(&mut d.result, &mesh.positions);
     d.samples = Some(cloud);
     Ok(d)

@@ -1004,7 +1004,7 @@ pub fn detect_building_blocks(
 ) -> Result<DetectionResult> {
     let options = motif_detect::DetectOptions { seed, ..Default::default() };
     if model.is_mesh() {
-        let mut d = motif_detect::detect_mesh(&model.mesh(), name, &options, progress)?;
+        let mut d = motif_detect::detect_mesh(&model.mesh(), name, &options, progress, false)?;
         for c in &mut d.result.classes {
             for i in &mut c.instances {
                 i.points = None;

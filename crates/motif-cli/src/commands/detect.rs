@@ -140,7 +140,7 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         );
     }
     let detection = if model.is_mesh() {
-        motif_detect::detect_mesh(&model.mesh(), &scene, &o, &bar)
+        motif_detect::detect_mesh(&model.mesh(), &scene, &o, &bar, g.force)
     } else {
         motif_detect::detect(&model.vertices, &scene, &o, &bar, g.force)
     }

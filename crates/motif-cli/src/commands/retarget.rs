@@ -11,7 +11,8 @@ use motif_retarget::offsets::{
     OffsetAnalysis, OffsetOptions, Repetition, analyze_features, prepare_features,
 };
 use motif_retarget::retarget::{
-    RetargetMethod, RetargetOptions, RetargetReport, RetargetSession, TriangleAssignment, orient_offsets,
+    RetargetError, RetargetMethod, RetargetOptions, RetargetReport, RetargetSession, TriangleAssignment,
+    orient_offsets,
 };
 use serde::Serialize;
 
@@ -471,7 +472,27 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     };
     let mut session = RetargetSession::with_features(&mesh, &features, &solver_offsets, &options, &bar)
         .with_context(in_mesh)?;
-    let res = match session.retarget(to_solver(steps), &bar) {
+    // The session numbers its directions in the order it solves with; the user counts steps by
+    // model axis (`order`), so a shrink error names the entry of `--steps` the user typed.
+    let in_user_order = |e: RetargetError| match e {
+        RetargetError::ShrinkBelowOneCell {
+            direction,
+            steps,
+            input_voxels,
+            output_voxels,
+            minimum,
+            min_steps,
+        } => RetargetError::ShrinkBelowOneCell {
+            direction: order.iter().position(|&i| i == direction).unwrap_or(direction),
+            steps,
+            input_voxels,
+            output_voxels,
+            minimum,
+            min_steps,
+        },
+        e => e,
+    };
+    let res = match session.retarget(to_solver(steps), &bar).map_err(in_user_order) {
         Ok(res) => res,
         // A size the user asked for, in the steps it was turned into (the error speaks of
         // steps, which the user never gave).

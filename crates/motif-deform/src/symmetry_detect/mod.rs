@@ -42,7 +42,7 @@
 //! (only the reported mean residuals can differ in the last bits between thread counts).
 
 mod assemble;
-mod bvh;
+pub(crate) mod bvh;
 mod candidates;
 mod element;
 mod error;
