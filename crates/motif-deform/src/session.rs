@@ -242,6 +242,21 @@ impl DeformSession {
         let t = Instant::now();
         let sampling = symmetric_sampling(mesh, &resolved, &options.sampling)?;
         timings.sampling_ms = ms(t);
+        // A count the capped radius search could not come near (symmetric_sampling's
+        // MAX_RADIUS_OVER_GUESS): the orbits are large, which the user should hear of, as the
+        // solve's time and memory grow with them.
+        if let crate::symmetric_sampling::SampleSpacing::Count(n) = options.sampling.spacing
+            && sampling.len() > 2 * n
+        {
+            let largest = sampling.orbits.iter().map(|o| o.len).max().unwrap_or(0);
+            warnings.push(format!(
+                "symmetric sampling: {} samples instead of about {n}, as an orbit of the annotation's \
+                 symmetries holds {largest} images (symmetries that hold only approximately, forced, \
+                 generate far more transforms than their groups have): the solve is slower; a \
+                 corrected annotation avoids it",
+                sampling.len()
+            ));
+        }
         progress.start("lifting", MAX_SUPPORT_ROUNDS as u64 + 1);
         let t = Instant::now();
         let mut sampling = sampling;

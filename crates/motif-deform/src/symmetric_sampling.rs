@@ -451,6 +451,16 @@ pub(crate) fn add_orbits(
     Ok(())
 }
 
+/// The largest radius the search for a sample count tries, as a multiple of the radius that
+/// count would have on a surface without symmetries ([`radius_for_count`]). Orbits of exact
+/// symmetries merge their coinciding images, so the count falls as the radius grows and the
+/// search ends within a factor 2 of the guess. An approximate symmetry forced on a model (a
+/// mirror 1.7% of the diagonal off the windmill's plane) merges nothing: every orbit keeps all
+/// its images, the count stays high at any radius, and the search used to grow the radius to a
+/// third of the diagonal, where handles held no sample. The capped search keeps the samples dense
+/// and returns more of them than asked.
+const MAX_RADIUS_OVER_GUESS: f64 = 2.0;
+
 /// Symmetric Poisson-disc sampling of `mesh` under the resolved annotation (thesis 3.4).
 pub fn symmetric_sampling(
     mesh: &TriMesh,
@@ -573,10 +583,12 @@ pub fn symmetric_sampling(
                 }
                 prev = Some((r, count));
                 let step = ((target.ln() - count.max(1.0).ln()) / slope).clamp(-1.0, 1.0);
-                r *= step.exp();
-                if !(r.is_finite() && r > 1e-6 * diag) {
+                let next = (r * step.exp()).min(MAX_RADIUS_OVER_GUESS * guess);
+                // At the cap already: a larger radius is not tried (see MAX_RADIUS_OVER_GUESS).
+                if !(next.is_finite() && next > 1e-6 * diag) || next == r {
                     break;
                 }
+                r = next;
             }
             let (r, s) = best.ok_or_else(|| DeformError::InvalidOption {
                 name: "sampling.spacing",

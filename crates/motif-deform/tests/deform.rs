@@ -618,6 +618,29 @@ fn forced_approximate_symmetry_is_exact_on_the_samples() {
     }
 }
 
+/// The windmill's mirror moved 0.3 off its plane (1.7% of the diagonal) and forced: with the
+/// rotor's rotation it generates thousands of transforms, so the sample count cannot come near
+/// the 400 asked at any radius. The radius search stops at twice the guess, where the handles
+/// still hold samples (it grew the radius to a third of the diagonal, and a handle then held
+/// none), and a warning says why the samples are many.
+#[test]
+fn a_forced_symmetry_with_a_huge_orbit_keeps_the_samples_dense() {
+    let ex = generate("windmill", 0).unwrap();
+    let mut ann = ex.structure.symmetry.clone();
+    let SymmetryKind::Group { generators, .. } = &mut ann.symmetries[0].kind else { panic!("the mirror") };
+    assert_eq!(generators[0][0][0], -1.0, "a mirror across x = 0");
+    generators[0][0][3] += 0.3;
+    let o = DeformOptions { validation: AnnotationValidation::Force, ..DeformOptions::default() };
+    let mut s = DeformSession::new(&ex.mesh, &ann, &o).unwrap();
+    let SampleSpacing::Count(asked) = o.sampling.spacing else { panic!("a count by default") };
+    let guess = motif_deform::symmetric_sampling::radius_for_count(ex.mesh.area(), asked);
+    assert!(s.sampling().radius <= 2.0 * guess * (1.0 + 1e-12), "{} vs {guess}", s.sampling().radius);
+    assert!(s.warnings().iter().any(|w| w.contains("samples instead of about 400")), "{:?}", s.warnings());
+    let (h, t) = random_edit(&ex.mesh, 4);
+    s.set_handles(&h).unwrap();
+    s.solve(&t).unwrap();
+}
+
 #[test]
 fn check_annotation_reports_orders_and_residuals() {
     let ex = generate("gear", 0).unwrap();
