@@ -419,6 +419,25 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             // the distance of the size they give to the size asked ('-' asks for the model's own).
             // No shrink below one cell that the estimate did not itself ask for.
             s = nearest_steps(&principal, &cells, model_size, size, s);
+            // Offsets across the model's axes: each axis's size mixes cells of several offsets,
+            // and the closest box can trade the cells of one for another's (a turned shelf asked
+            // wider with its height kept grew +4 columns and lost 2 of its 3 rows). Said, with the
+            // way to choose the cells instead.
+            let slanted = principal.iter().any(|o| {
+                let n = motif_core::geometry::norm(*o);
+                n > 0.0 && o.iter().all(|x| x.abs() / n < 8f64.to_radians().cos())
+            });
+            if slanted {
+                super::note(
+                    g,
+                    format!(
+                        "--target-size: {} has principal offsets across its axes, so the size asked per axis is \
+                         met by its bounding box, here with steps {}; --steps U,V,W chooses the cells directly",
+                        a.mesh.display(),
+                        s[..principal.len()].iter().map(|x| format!("{x:+}")).collect::<Vec<_>>().join(",")
+                    ),
+                );
+            }
             // An axis that no offset reaches (no offset has 5% of its length along it) keeps
             // its size: asking for another one there is refused, as --steps along a direction
             // without an offset is, instead of being ignored. Axes an offset reaches come as
@@ -650,12 +669,18 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     maybe_json(&a.json.json, &report)
 }
 
-/// The whole steps within 3 of `start` along each of `principal` whose predicted box size,
-/// `model_size + Σₖ sₖ |oₖ|` per axis, is closest to `size` (Euclidean, model units); ties (within
-/// 10⁻⁹ of the size asked, squared) go to fewer steps in all, then to the lexicographically
-/// smaller step vector, so the choice is deterministic. Along offset k no candidate keeps fewer
-/// than one of the model's `cells[k]` cells unless `start` already does (the session refuses it,
-/// in the user's terms, for the steps the estimate gave).
+/// The whole steps along each of `principal` whose predicted box size,
+/// `model_size + Σₖ sₖ |oₖ|` per axis, is closest to `size` (Euclidean, model units): from
+/// `start` (the per-offset estimate), a descent over the steps one away on any offsets (all
+/// 3^m − 1 of them) while the size comes closer, then the closest within 3 of where it stopped.
+/// The descent finds steps the estimate's neighbourhood does not hold: on a shelf turned 30°
+/// about z and 20° about x, `--target-size 3000,-,-` (wider, the rest kept) was estimated
+/// +2,+3 along the slanted offsets, and the window of 3 about it held no shrink along the second
+/// offset, which the kept height needs. Ties (within 10⁻⁹ of the size asked, squared) go to
+/// fewer steps in all, then to the lexicographically smaller step vector, so the choice is
+/// deterministic. Along offset k no candidate keeps fewer than one of the model's `cells[k]`
+/// cells unless `start` already does (the session refuses it, in the user's terms, for the
+/// steps the estimate gave).
 fn nearest_steps(
     principal: &[[f64; 3]],
     cells: &[i32],
@@ -677,32 +702,54 @@ fn nearest_steps(
         let p = predicted(s);
         (0..3).map(|i| (p[i] - size[i]).powi(2)).sum::<f64>()
     };
-    let range = |k: usize| {
-        if k < m {
-            let floor = start[k].min(1 - cells.get(k).copied().unwrap_or(1));
-            start[k].saturating_sub(3).max(floor)..=start[k].saturating_add(3)
-        } else {
-            0..=0
-        }
-    };
+    let floor = |k: usize| start[k].min(1 - cells.get(k).copied().unwrap_or(1));
     let tie = 1e-9 * size.iter().map(|x| x * x).sum::<f64>().max(f64::MIN_POSITIVE);
-    let mut best = start;
-    let mut best_key = (error(start), start.iter().map(|x| x.unsigned_abs()).sum::<u32>(), start);
-    for a in range(0) {
-        for b in range(1) {
-            for c in range(2) {
-                let s = [a, b, c];
-                let key = (error(s), s.iter().map(|x| x.unsigned_abs()).sum::<u32>(), s);
-                if key.0 < best_key.0 - tie
-                    || ((key.0 - best_key.0).abs() <= tie && (key.1, key.2) < (best_key.1, best_key.2))
-                {
-                    best = s;
-                    best_key = key;
+    let key = |s: [i32; 3]| (error(s), s.iter().map(|x| x.unsigned_abs()).sum::<u32>(), s);
+    let better = |a: &(f64, u32, [i32; 3]), b: &(f64, u32, [i32; 3])| {
+        a.0 < b.0 - tie || ((a.0 - b.0).abs() <= tie && (a.1, a.2) < (b.1, b.2))
+    };
+    // Every step vector within `radius` of `centre` on the offsets (none beyond the m offsets),
+    // none below a floor.
+    let around = |centre: [i32; 3], radius: i32| {
+        let range = |k: usize| {
+            if k < m {
+                centre[k].saturating_sub(radius).max(floor(k))..=centre[k].saturating_add(radius)
+            } else {
+                0..=0
+            }
+        };
+        let mut out = Vec::new();
+        for a in range(0) {
+            for b in range(1) {
+                for c in range(2) {
+                    out.push([a, b, c]);
                 }
             }
         }
+        out
+    };
+    let closest = |candidates: Vec<[i32; 3]>, from: [i32; 3]| {
+        let mut best = (from, key(from));
+        for s in candidates {
+            let k = key(s);
+            if better(&k, &best.1) {
+                best = (s, k);
+            }
+        }
+        best.0
+    };
+    // The size is a convex quadratic in the steps: the descent ends at a local minimum of the
+    // integer grid, a few steps from the continuous one. Bounded, as steps beyond 10⁶ are
+    // refused before this.
+    let mut at = start;
+    for _ in 0..10_000 {
+        let next = closest(around(at, 1), at);
+        if next == at {
+            break;
+        }
+        at = next;
     }
-    best
+    closest(around(at, 3), at)
 }
 
 /// Reads the mesh to retarget, with the reader's warnings (ignored texture coordinates,
@@ -751,6 +798,31 @@ mod tests {
         assert_eq!(nearest_steps(&principal, &[4, 3], model, [3.0, 1.13, 0.3], [2, 1, 0]), [2, 0, 0]);
         // Both sizes asked: the closest pair.
         assert_eq!(nearest_steps(&principal, &[4, 3], model, [2.5, 1.5, 0.3], [1, 1, 0]), [0, 1, 0]);
+    }
+
+    /// A shelf turned 30° about z and 20° about x (cells of 420 and 370 model units), asked to be
+    /// 3000 wide and keep its height and depth: the per-offset estimate +2,+3 grows every axis;
+    /// the closest size shrinks along the second offset. Checked against every step vector in a
+    /// wide box.
+    #[test]
+    fn steps_far_from_the_estimate_are_found() {
+        let principal = [[363.73, 197.34, 71.82], [-185.0, 301.11, 109.59]];
+        let model = [2037.24, 1820.94, 907.33];
+        let size = [3000.0, 1820.94, 907.33];
+        let got = nearest_steps(&principal, &[5, 4], model, size, [2, 3, 0]);
+        let error = |s: [i32; 3]| {
+            (0..3)
+                .map(|i| {
+                    let p = model[i] + (0..2).map(|k| s[k] as f64 * principal[k][i].abs()).sum::<f64>();
+                    (p - size[i]).powi(2)
+                })
+                .sum::<f64>()
+        };
+        let best = (-4..=10)
+            .flat_map(|a| (-3..=10).map(move |b| [a, b, 0]))
+            .min_by(|a, b| error(*a).total_cmp(&error(*b)));
+        assert_eq!(Some(got), best);
+        assert!(got[1] < 0, "{got:?}");
     }
 
     /// No candidate shrinks below one cell unless the estimate did: a 3-cell row asked to be half
