@@ -988,7 +988,8 @@ pub struct RetargetArgs {
     #[arg(long, value_name = "X,Y,Z[;X,Y,Z...]", allow_hyphen_values = true)]
     pub offsets: Option<String>,
     /// Leave the openings of cuts that no copy continues open instead of capping them (openings
-    /// along the input's own open boundary are never capped).
+    /// along the input's own open boundary are never capped). The fill that follows closes what
+    /// it can of them as holes: with --no-fill too, they stay open.
     #[arg(long)]
     pub no_caps: bool,
     /// Leave the holes still open after capping as they are instead of filling them (slits along
@@ -1001,7 +1002,8 @@ pub struct RetargetArgs {
     pub plain_resize: bool,
     /// How triangles travel with the voxels: `cut` (cut at voxel faces first, so that long
     /// triangles spanning several cells stretch with the model) or `centroid` (whole, by the voxel
-    /// of their centroid; keeps the tessellation exactly).
+    /// of their centroid; keeps the tessellation exactly, but leaves gaps along the seams that
+    /// capping and filling do not always close, also on closed models).
     #[arg(long, value_enum, default_value_t = AssignmentArg::Cut)]
     pub assignment: AssignmentArg,
     /// Also write a picture of the input and the result side by side (PNG), seen along the normal

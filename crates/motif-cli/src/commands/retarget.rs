@@ -618,6 +618,21 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
              triangles meet with opposite orientations (`motif info` counts them)"
         ));
     }
+    // Open edges a closed input did not have, where no seam of infinite cost explains them (that
+    // warning, below, speaks of the openings itself): copying whole triangles by centroid
+    // leaves gaps along the seams, which capping and filling do not always close.
+    if input_boundary == 0 && r.output_boundary_edges > 0 && r.infinite_seams == 0 {
+        super::warn(format!(
+            "the output has {} although the input is closed{}",
+            count(r.output_boundary_edges, "open boundary edge", "open boundary edges"),
+            if matches!(a.assignment, AssignmentArg::Centroid) {
+                ": --assignment centroid copies whole triangles, which leave gaps along the seams; \
+                 the default, --assignment cut, cuts them at the voxel faces and closes them"
+            } else {
+                " (`motif info` lists them)"
+            }
+        ));
+    }
     if r.infinite_seams > 0 {
         let dims = principal.len().clamp(1, 3);
         let others = match alternatives.as_deref() {
