@@ -2324,3 +2324,24 @@ fn a_closed_stdout_keeps_the_finished_outputs() {
     assert!(d.path().join("o.png").is_file(), "the picture was finished before the result was printed");
     assert_no_stray_files(d.path());
 }
+
+/// A closed model whose whole triangles, copied by centroid, leave gaps along the seams (the CGAL
+/// cheese of the shared data): a warning names the cause and the default that closes them; the
+/// default leaves none and says nothing.
+#[test]
+fn retarget_warns_of_open_edges_a_closed_input_did_not_have() {
+    let Some(data) = motif_core::data::shared_data_dir(Path::new(env!("CARGO_MANIFEST_DIR"))) else {
+        println!("skipping: no shared data found (set MOTIF_DATA)");
+        return;
+    };
+    let cheese = data.join("man-made/cgal_cheese.off");
+    let cheese = cheese.to_str().unwrap();
+    let d = tmp();
+    let o =
+        motif(&["retarget", cheese, "--steps", "1,0,0", "--assignment", "centroid", "-o", "c.ply"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("although the input is closed: --assignment centroid"), "{}", stderr(&o));
+    let o = motif(&["retarget", cheese, "--steps", "1,0,0", "-o", "cut.ply"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("although the input is closed"), "{}", stderr(&o));
+}
