@@ -582,6 +582,9 @@ fn align_recovers_a_known_motion_and_demo_runs() {
     assert!(d.path().join("demo/gear_curvature.ply").exists());
     assert!(d.path().join("demo/facade_scan.labels.ply").exists());
     assert!(d.path().join("demo/facade_scan.detection.json").exists());
+    // The demo's result and ground truth rescore as they are, with no warning of other scenes.
+    let o = motif(&["eval", "demo/facade_scan.detection.json", "demo/facade_scan.gt.json"], d.path());
+    assert!(o.status.success() && !stderr(&o).contains("warning"), "{}", stderr(&o));
     // Pictures where a user would rather look than read, each listed among the step's outputs.
     let listed: Vec<String> = rep["steps"]
         .as_array()
@@ -1211,6 +1214,12 @@ fn baseline_rigid_icp_finds_the_cars_of_an_easy_street() {
     let o = motif(&["baseline", "rigid-icp", "st.ply", "--gt", "nothing.json", "-o", "x.json"], d.path());
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("nothing.json"), "{}", stderr(&o));
+    // Ground truth without an instance gives no template: refused, not a perfect F.
+    std::fs::write(d.path().join("empty.json"), r#"{"scene":"st.ply","classes":[]}"#).unwrap();
+    let o = motif(&["baseline", "rigid-icp", "st.ply", "--gt", "empty.json", "-o", "x.json"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("empty.json") && stderr(&o).contains("no instance"), "{}", stderr(&o));
+    assert!(!d.path().join("x.json").exists());
     let o = motif(
         &["baseline", "rigid-icp", "st.ply", "--gt", "cars.json", "-o", "x.json", "--min-score", "2"],
         d.path(),

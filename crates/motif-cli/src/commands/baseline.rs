@@ -29,6 +29,15 @@ pub fn rigid_icp(a: RigidIcpArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         return Err(bad_input(format!("{}: no points", a.scene.display())));
     }
     let ground_truth = DetectionResult::read(&a.gt)?;
+    // The baseline takes each class's first instance as its template: without one there is
+    // nothing to search for, and scoring nothing against nothing would print a perfect F.
+    if ground_truth.classes.iter().all(|c| c.instances.is_empty()) {
+        return Err(bad_input(format!(
+            "{}: the ground truth has no instance to take as a template (rigid ICP searches for each \
+             class's first instance)",
+            a.gt.display()
+        )));
+    }
     let options = RigidIcpOptions {
         step: a.step,
         min_score: a.min_score,

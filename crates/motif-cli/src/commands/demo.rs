@@ -556,7 +556,10 @@ fn detection(d: &Demo) -> anyhow::Result<(String, Vec<String>)> {
         seed: d.g.seed,
         ..Default::default()
     };
-    let scene = generate_scene(SceneKind::Facade, &so)?;
+    let mut scene = generate_scene(SceneKind::Facade, &so)?;
+    // Named after the scan it annotates, as `motif example` names it, so that `motif eval` on the
+    // demo's result and ground truth finds the scenes the same.
+    scene.ground_truth.scene = "facade_scan.ply".into();
     let mut outputs = vec![write(&d.path("facade_scan.ply"), &Model::from_point_cloud(scene.cloud.clone()))?];
     let gt_path = d.path("facade_scan.gt.json");
     crate::output::write_json(&gt_path, &scene.ground_truth)?;
