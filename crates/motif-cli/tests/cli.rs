@@ -582,6 +582,11 @@ fn align_recovers_a_known_motion_and_demo_runs() {
     assert!(d.path().join("demo/gear_curvature.ply").exists());
     assert!(d.path().join("demo/facade_scan.labels.ply").exists());
     assert!(d.path().join("demo/facade_scan.detection.json").exists());
+    // A file where the demo's folder should go is a usage error.
+    std::fs::write(d.path().join("afile"), "x").unwrap();
+    let o = motif(&["demo", "--out", "afile"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("afile: exists and is not a folder"), "{}", stderr(&o));
     // The demo's result and ground truth rescore as they are, with no warning of other scenes.
     let o = motif(&["eval", "demo/facade_scan.detection.json", "demo/facade_scan.gt.json"], d.path());
     assert!(o.status.success() && !stderr(&o).contains("warning"), "{}", stderr(&o));
@@ -1595,6 +1600,12 @@ fn info_reports_whether_the_surface_is_closed_and_consistently_oriented() {
     assert!(stdout(&bad).contains("3 misoriented") && stdout(&bad).contains("not consistently oriented"));
     let j = json_of(&motif(&["info", "flipped.obj", "--json"], d.path()));
     assert_eq!((j["boundary_edges"].as_u64(), j["misoriented_edges"].as_u64()), (Some(0), Some(3)));
+    // Two tetrahedra sharing an edge: no boundary, but four triangles on one edge, which is
+    // not closed (watertight), as trimesh and libigl say.
+    let two = format!("{}v 0 -1 0\nv 0 0 -1\nf 1 5 2\nf 1 2 6\nf 1 6 5\nf 2 5 6\n", tet(false));
+    std::fs::write(d.path().join("two.obj"), two).unwrap();
+    let o = motif(&["info", "two.obj"], d.path());
+    assert!(stdout(&o).contains("1 non-manifold") && stdout(&o).contains("not closed"), "{}", stdout(&o));
 }
 
 #[test]

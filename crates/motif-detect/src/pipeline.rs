@@ -469,6 +469,15 @@ pub fn detect_mesh(
     let mut cloud = PointCloud::from_positions(s.points);
     cloud.normals = Some(s.normals);
     let mut d = detect(&cloud, scene, o, progress, force)?;
+    // The density is this function's choice, not the data's: say which option sets it.
+    for w in &mut d.report.warnings {
+        if w.contains("sparser than the thesis's resolution") {
+            w.push_str(&format!(
+                " (the mesh was sampled at {} points: more, with --mesh-samples, keep the thesis's ε)",
+                o.mesh_samples
+            ));
+        }
+    }
     d.report.vertex_snap = refine_on_vertices(&mut d.result, &mesh.positions);
     d.samples = Some(cloud);
     Ok(d)
@@ -517,7 +526,8 @@ pub fn detect(
         // cannot add any.
         let at_data_resolution = pre.points.len() as f64 >= 0.9 * cloud.len() as f64;
         let advice = if at_data_resolution {
-            "ε is already at the data's spacing: try a lower kappa threshold, or denser data"
+            "ε is at or below the data's own spacing, so a smaller one adds no points: try a lower kappa \
+             threshold, or denser data"
         } else {
             "try a smaller ε or a lower kappa threshold"
         };

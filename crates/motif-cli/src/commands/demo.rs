@@ -82,6 +82,14 @@ fn say(to_stderr: bool, text: &str) {
 }
 
 pub fn run(a: DemoArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    // A file where the folder should go is a usage error (exit 2), as an output that cannot
+    // be written is for every other command.
+    if a.out.exists() && !a.out.is_dir() {
+        return Err(crate::output::bad_input(format!(
+            "{}: exists and is not a folder; --out names the folder the demo writes its files into",
+            a.out.display()
+        )));
+    }
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     crate::output::check_outputs(&[a.json.json.as_deref()], &[], g.force)?;
     let to_stderr = crate::output::json_on_stdout(&a.json.json);

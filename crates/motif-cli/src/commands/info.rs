@@ -108,7 +108,13 @@ pub fn run(a: InfoArgs, _g: &GlobalArgs) -> anyhow::Result<()> {
             "  edges        {} ({} boundary, {} non-manifold, {} misoriented)",
             r.edges, r.boundary_edges, r.non_manifold_edges, r.misoriented_edges
         );
-        let closed = if r.boundary_edges == 0 { "closed" } else { "open" };
+        // Closed means watertight, as trimesh and libigl use it: no boundary edge, and every
+        // edge between exactly two triangles.
+        let closed = match (r.boundary_edges, r.non_manifold_edges) {
+            (0, 0) => "closed",
+            (0, _) => "without boundary but not closed (non-manifold edges)",
+            _ => "open",
+        };
         let winding =
             if r.misoriented_edges == 0 { "consistently oriented" } else { "not consistently oriented" };
         println!("  surface      {closed}, {winding}");

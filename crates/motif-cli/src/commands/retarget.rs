@@ -565,10 +565,10 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             r.total_ms
         );
         println!(
-            "output: {} vertices, {} triangles, {} components (input {} / {})",
+            "output: {} vertices, {}, {} (input {} / {})",
             r.output_vertices,
-            r.output_triangles,
-            r.output_components,
+            count(r.output_triangles, "triangle", "triangles"),
+            count(r.output_components, "component", "components"),
             mesh.num_vertices(),
             mesh.num_triangles()
         );

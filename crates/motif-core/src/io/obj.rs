@@ -263,11 +263,15 @@ pub(super) fn read(bytes: &[u8], path: &Path) -> Result<Model> {
 
     if texture_coordinates > 0 {
         warnings.push(format!(
-            "ignored {texture_coordinates} texture coordinate lines (vt): Motif keeps positions, normals and colours only"
+            "ignored {texture_coordinates} texture coordinate {} (vt): Motif keeps positions, normals and colours only",
+            if texture_coordinates == 1 { "line" } else { "lines" }
         ));
     }
     if materials > 0 {
-        warnings.push(format!("ignored {materials} material lines (usemtl, mtllib)"));
+        warnings.push(format!(
+            "ignored {materials} material {} (usemtl, mtllib)",
+            if materials == 1 { "line" } else { "lines" }
+        ));
     }
     for (k, n) in ignored {
         warnings.push(format!("ignored {n} lines with the unsupported keyword {k:?}"));
@@ -391,8 +395,8 @@ mod tests {
         assert_eq!(
             m.warnings,
             [
-                "ignored 1 texture coordinate lines (vt): Motif keeps positions, normals and colours only",
-                "ignored 1 material lines (usemtl, mtllib)"
+                "ignored 1 texture coordinate line (vt): Motif keeps positions, normals and colours only",
+                "ignored 1 material line (usemtl, mtllib)"
             ]
         );
     }
