@@ -9,7 +9,17 @@ use motif_detect::{
 use crate::cli::{EvalArgs, GlobalArgs};
 use crate::output::{bad_input, check_outputs, maybe_json};
 
+/// The `--json` report: the summary, and the time it took.
+#[derive(serde::Serialize)]
+struct Report<'a> {
+    #[serde(flatten)]
+    summary: &'a EvalSummary,
+    /// Reading and scoring, ms.
+    ms: f64,
+}
+
 pub fn run(a: EvalArgs, g: &GlobalArgs) -> anyhow::Result<()> {
+    let t0 = std::time::Instant::now();
     if a.files.len() % 2 != 0 {
         return Err(bad_input(format!("give RESULT GT pairs: {} files is an odd number", a.files.len())));
     }
@@ -64,7 +74,7 @@ pub fn run(a: EvalArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             super::note(g, format!("wrote {}", p.display()));
         }
     }
-    maybe_json(&a.json.json, &summary)
+    maybe_json(&a.json.json, &Report { summary: &summary, ms: crate::output::ms_since(t0) })
 }
 
 /// The `--per-class` tables: annotated classes summed by name, then (one scene) detected classes.
