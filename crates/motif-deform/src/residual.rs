@@ -416,8 +416,7 @@ mod tests {
     use motif_core::geometry::closest_point_on_triangle;
 
     /// The hierarchy's distance equals a scan of every triangle, for points near and far from
-    /// a mesh with long fanned triangles (the fan's hub) and on it (at vertices and inside
-    /// triangles).
+    /// three generated meshes and on them (at vertices, and just off the triangles' insides).
     #[test]
     fn surface_distance_equals_a_scan_of_every_triangle() {
         use rand::{Rng, SeedableRng};
