@@ -2347,9 +2347,10 @@ fn a_closed_stdout_keeps_the_finished_outputs() {
 
 /// A closed model whose whole triangles, copied by centroid, leave gaps along the seams (the CGAL
 /// cheese of the shared data): a warning names the cause and the default that closes them; the
-/// default leaves none and says nothing.
+/// default leaves none and says nothing. Edges of four triangles (the gridbeam shelf) are said
+/// and counted.
 #[test]
-fn retarget_warns_of_open_edges_a_closed_input_did_not_have() {
+fn retarget_reports_open_and_non_manifold_edges_a_closed_input_did_not_have() {
     let Some(data) = motif_core::data::shared_data_dir(Path::new(env!("CARGO_MANIFEST_DIR"))) else {
         println!("skipping: no shared data found (set MOTIF_DATA)");
         return;
@@ -2364,4 +2365,22 @@ fn retarget_warns_of_open_edges_a_closed_input_did_not_have() {
     let o = motif(&["retarget", cheese, "--steps", "1,0,0", "-o", "cut.ply"], d.path());
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(!stderr(&o).contains("although the input is closed"), "{}", stderr(&o));
+    // Two copies' sections touching along a voxel edge give edges of four triangles, as a union
+    // of two solids touching along an edge has: no open edge, but said, and counted in the
+    // report as `motif info` counts them.
+    let gridbeam = data.join("man-made/mcad_gridbeam_shelf.stl");
+    let o = motif(
+        &["retarget", gridbeam.to_str().unwrap(), "--steps", "1,1", "-o", "gb.obj", "--json", "gb.json"],
+        d.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.path().join("gb.json")).unwrap()).unwrap();
+    let (input, output) = (&r["edges"]["input"], &r["edges"]["output"]);
+    assert_eq!((input["boundary"].as_u64(), input["non_manifold"].as_u64()), (Some(0), Some(0)), "{r}");
+    let n = output["non_manifold"].as_u64().unwrap();
+    assert_eq!(output["boundary"].as_u64(), Some(0), "{r}");
+    assert!(n > 0 && stdout(&o).contains(&format!("non-manifold: {n} edges")), "{}", stdout(&o));
+    let info = json_of(&motif(&["info", "gb.obj", "--json"], d.path()));
+    assert_eq!(info["non_manifold_edges"].as_u64(), Some(n));
 }
