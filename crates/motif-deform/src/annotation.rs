@@ -157,8 +157,8 @@ fn parse_annotation_named(json: &str, what: &str) -> Result<SymmetryAnnotation> 
         });
     }
     if !(a.tolerance.is_finite() && a.tolerance > 0.0 && a.tolerance < 1.0) {
-        return Err(DeformError::InvalidOption {
-            name: "tolerance",
+        return Err(DeformError::InvalidFileContent {
+            field: "tolerance",
             message: format!(
                 "{what}: the tolerance must lie in (0, 1) (relative to the diagonal), got {}",
                 a.tolerance
@@ -267,8 +267,8 @@ impl RegionTest {
             }
             Region::Aabb { min, max } => {
                 if !(min.iter().chain(max).all(|c| c.is_finite()) && (0..3).all(|k| min[k] <= max[k])) {
-                    return Err(DeformError::InvalidOption {
-                        name: "region",
+                    return Err(DeformError::InvalidFileContent {
+                        field: "region",
                         message: format!("{what}: box needs finite min <= max, got {min:?} .. {max:?}"),
                     });
                 }
@@ -276,8 +276,8 @@ impl RegionTest {
             }
             Region::Sphere { center, radius } => {
                 if !(center.iter().all(|c| c.is_finite()) && radius.is_finite() && *radius >= 0.0) {
-                    return Err(DeformError::InvalidOption {
-                        name: "region",
+                    return Err(DeformError::InvalidFileContent {
+                        field: "region",
                         message: format!("{what}: sphere needs a finite centre and radius >= 0"),
                     });
                 }
@@ -452,8 +452,8 @@ pub fn regions_as_vertices(annotation: &SymmetryAnnotation, mesh: &TriMesh) -> R
 pub fn resolve_annotation(mesh: &TriMesh, annotation: &SymmetryAnnotation) -> Result<ResolvedAnnotation> {
     let diagonal = check_mesh(mesh)?;
     if !(annotation.tolerance.is_finite() && annotation.tolerance > 0.0 && annotation.tolerance < 1.0) {
-        return Err(DeformError::InvalidOption {
-            name: "tolerance",
+        return Err(DeformError::InvalidFileContent {
+            field: "tolerance",
             message: format!(
                 "the annotation's tolerance must lie in (0, 1) (relative to the diagonal), got {}",
                 annotation.tolerance

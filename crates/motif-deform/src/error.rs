@@ -45,6 +45,15 @@ pub enum DeformError {
     /// The mesh cannot be deformed (no vertices, no extent, NaN coordinates, ...).
     #[error("invalid mesh: {0}")]
     InvalidMesh(String),
+    /// A field of an annotation or handles file holds a value out of its range: the message
+    /// names the file and the field (these are not options, so not said as one).
+    #[error("{message}")]
+    InvalidFileContent {
+        /// The field of the file (`"frames"`, `"region"`, `"tolerance"`).
+        field: &'static str,
+        /// The file, the field and what is wrong.
+        message: String,
+    },
     /// An option is out of its valid range.
     #[error("invalid option {name}: {message}")]
     InvalidOption {

@@ -86,12 +86,14 @@ impl HandlesFile {
         }
         for (i, fr) in f.frames.iter().enumerate() {
             if fr.len() != f.handles.len() {
-                return Err(DeformError::InvalidOption {
-                    name: "frames",
+                return Err(DeformError::InvalidFileContent {
+                    field: "frames",
                     message: format!(
-                        "{what}: frame {i} has {} transforms for {} handles (one per handle is needed)",
+                        "{what}: frame {i} has {} {} for {} {} (one per handle is needed)",
                         fr.len(),
-                        f.handles.len()
+                        if fr.len() == 1 { "transform" } else { "transforms" },
+                        f.handles.len(),
+                        if f.handles.len() == 1 { "handle" } else { "handles" }
                     ),
                 });
             }
