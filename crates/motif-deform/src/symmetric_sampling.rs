@@ -453,8 +453,8 @@ pub(crate) fn add_orbits(
 
 /// The largest radius the search for a sample count tries, as a multiple of the radius that
 /// count would have on a surface without symmetries ([`radius_for_count`]). Orbits of exact
-/// symmetries merge their coinciding images, so the count falls as the radius grows and the
-/// search ends within a factor 2 of the guess. An approximate symmetry forced on a model (a
+/// symmetries merge their coinciding images, so the count falls as the radius grows, as on a
+/// surface without symmetries, and the search settles near the guess. An approximate symmetry forced on a model (a
 /// mirror 1.7% of the diagonal off the windmill's plane) merges nothing: every orbit keeps all
 /// its images, the count stays high at any radius, and the search used to grow the radius to a
 /// third of the diagonal, where handles held no sample. The capped search keeps the samples dense

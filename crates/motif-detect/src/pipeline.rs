@@ -471,7 +471,7 @@ pub fn detect_mesh(
     let mut d = detect(&cloud, scene, o, progress, force)?;
     // The density is this function's choice, not the data's: say which option sets it.
     for w in &mut d.report.warnings {
-        if w.contains("sparser than the thesis's resolution") {
+        if w.ends_with(crate::preprocess::SPARSER_THAN_THE_THESIS) {
             w.push_str(&format!(
                 " (the mesh was sampled at {} points: more, with --mesh-samples, keep the thesis's ε)",
                 o.mesh_samples

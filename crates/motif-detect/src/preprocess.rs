@@ -39,6 +39,10 @@ pub enum Epsilon {
     Auto,
 }
 
+/// The end of the warning given when ε is raised to the input's spacing ([`Epsilon::Auto`]);
+/// [`crate::detect_mesh`] adds which option sets a mesh's density to it.
+pub(crate) const SPARSER_THAN_THE_THESIS: &str = "the data is sparser than the thesis's resolution";
+
 /// The largest ε accepted without `--force`, as a share of the diagonal: at 1/16 a HOC cell
 /// (8ε) spans half the model and the pair radius (64ε) four times it.
 pub const MAX_EPSILON_SHARE: f64 = 1.0 / 16.0;
@@ -323,7 +327,7 @@ pub fn preprocess(cloud: &PointCloud, o: &PreprocessOptions, force: bool) -> Res
             if spacing > thesis {
                 warnings.push(format!(
                     "ε raised from the thesis's 0.0005 × diagonal ({thesis:.4}) to 1.02 × the input's \
-                     median spacing, {spacing:.4}: the data is sparser than the thesis's resolution"
+                     median spacing, {spacing:.4}: {SPARSER_THAN_THE_THESIS}"
                 ));
                 spacing
             } else {
