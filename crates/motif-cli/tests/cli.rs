@@ -975,7 +975,7 @@ fn retarget_adds_shelf_cells_and_refuses_models_without_repetition() {
         d.path(),
     );
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(stderr(&o).contains("as asked") && !stderr(&o).contains("flat along"), "{}", stderr(&o));
+    assert!(stdout(&o).contains("as asked") && !stderr(&o).contains("flat along"), "{}", stderr(&o));
     // The preview is drawn for a plain resize too (it used to be skipped without a word).
     assert_eq!(&std::fs::read(d.path().join("g.png")).unwrap()[1..4], b"PNG");
     // A given offset longer than the model makes copies that do not overlap: refused.
@@ -1000,7 +1000,7 @@ fn retarget_adds_shelf_cells_and_refuses_models_without_repetition() {
     );
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
-        stderr(&o).contains("flat along z (asked 1)") && !stderr(&o).contains("as asked"),
+        stderr(&o).contains("flat along z (asked 1)") && !stdout(&o).contains("as asked"),
         "{}",
         stderr(&o)
     );

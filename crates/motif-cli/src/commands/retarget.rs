@@ -339,15 +339,22 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             .filter(|&k| e[k] <= 0.0)
             .map(|k| format!("{} (asked {})", ["x", "y", "z"][k], size[k]))
             .collect();
-        // The scale factors are the result (printed under --quiet too); "wrote" is a note.
+        // The scale factors are the result (printed under --quiet too, on stdout as every result
+        // is); "wrote" is a note.
         let factor = |f: f64| if (1e-3..1e4).contains(&f) { format!("{f:.4}") } else { format!("{f:.4e}") };
-        eprintln!(
+        let result = format!(
             "{evidence}; scaled by {} x {} x {} (--plain-resize){}",
             factor(s[0]),
             factor(s[1]),
             factor(s[2]),
             if flat.is_empty() { " as asked".to_string() } else { String::new() }
         );
+        // With the JSON report on stdout, stdout is the report alone.
+        if crate::output::json_on_stdout(&a.json.json) {
+            eprintln!("{result}");
+        } else {
+            println!("{result}");
+        }
         if !g.quiet {
             eprintln!("wrote {}", a.output.display());
             if let Some(p) = &a.preview {
