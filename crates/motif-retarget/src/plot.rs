@@ -909,11 +909,11 @@ fn draw_text(
             "{} dense, {} features; {:.2} s (sample {:.2}, SHOT {:.2}, match {:.2}, ICP {:.2})",
             analysis.counts.dense,
             analysis.counts.features,
-            t.total,
-            t.sampling,
-            t.shot,
-            t.matching,
-            t.refinement
+            t.total_ms / 1e3,
+            t.sampling_ms / 1e3,
+            t.shot_ms / 1e3,
+            t.matching_ms / 1e3,
+            t.refinement_ms / 1e3
         ),
         13,
         NOTE_GREY,

@@ -186,6 +186,30 @@ fn principal_offsets_are_listed_by_model_axis_in_any_unit() {
     }
 }
 
+/// The principal offsets are given in the orientation retargeting grows along (largest-magnitude
+/// component positive), so `motif offsets` and `motif retarget` print the same vectors. A shelf
+/// turned 30° about z and 20° about x has its y pitch along (−0.5, 0.81, 0.29) up to sign: the
+/// histogram's half-space (first coordinate positive) gave it as (0.5, −0.81, −0.29).
+#[test]
+fn principal_offsets_point_the_way_retargeting_grows() {
+    let ex = generate("shelf", 0).expect("shelf");
+    let (c, s) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
+    let (c2, s2) = (20f64.to_radians().cos(), 20f64.to_radians().sin());
+    let mut turned = ex.mesh.clone();
+    for p in &mut turned.positions {
+        let q = [c * p[0] - s * p[1], s * p[0] + c * p[1], p[2]];
+        *p = [q[0], c2 * q[1] - s2 * q[2], s2 * q[1] + c2 * q[2]];
+    }
+    for mesh in [&ex.mesh, &turned] {
+        let a = analyze(mesh);
+        assert_eq!(a.principal.len(), 2);
+        let offsets: Vec<Point3> = a.principal.iter().map(|p| p.offset_model).collect();
+        assert_eq!(motif_retarget::retarget::orient_offsets(&offsets), offsets);
+        // The turned y pitch: its largest component is the y one, positive.
+        assert!(offsets.iter().any(|v| v[1] > 0.5 * norm(*v)), "{offsets:?}");
+    }
+}
+
 #[test]
 fn analysis_round_trips_through_json_and_options_default_from_empty_json() {
     let ex = generate("shelf", 0).expect("shelf");
@@ -361,7 +385,7 @@ fn grid_models_of_the_shared_data() {
             a.counts.dense,
             a.counts.features,
             format!("{:?}", a.repetition.kind),
-            a.timings.total,
+            a.timings.total_ms / 1e3,
             principal.join("; ")
         );
         for (axis, pitch) in trans_claims(entry) {

@@ -67,7 +67,7 @@ pub fn offsets(a: OffsetsArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         println!(
             "  {} dominant offsets (histogram peaks); analysis {:.0} ms",
             an.dominant.len(),
-            1e3 * an.timings.total
+            an.timings.total_ms
         );
     }
     if let Some(p) = &a.plot {

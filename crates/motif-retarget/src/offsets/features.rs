@@ -83,15 +83,15 @@ pub enum FeatureKind {
     Sample,
 }
 
-/// Wall-clock seconds of the precomputation stages.
+/// Wall-clock milliseconds of the precomputation stages.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct FeatureTimings {
-    /// Normalising, thinning the vertices, Poisson-disc sampling at both scales, seconds.
-    pub sampling: f64,
-    /// Building the kd-tree of the dense cloud, seconds.
-    pub tree: f64,
-    /// SHOT descriptors of the features, seconds.
-    pub shot: f64,
+    /// Normalising, thinning the vertices, Poisson-disc sampling at both scales, ms.
+    pub sampling_ms: f64,
+    /// Building the kd-tree of the dense cloud, ms.
+    pub tree_ms: f64,
+    /// SHOT descriptors of the features, ms.
+    pub shot_ms: f64,
 }
 
 /// Sampled and described model: the input of matching (eq. 4.1), of the ICP refinement (4.4) and
@@ -273,17 +273,17 @@ pub fn prepare_features(
     let mut kinds = vec![FeatureKind::Vertex; nv];
     kinds.resize(features.len(), FeatureKind::Sample);
     progress.finish();
-    let sampling = t0.elapsed().as_secs_f64();
+    let sampling = 1e3 * t0.elapsed().as_secs_f64();
 
     let t1 = Instant::now();
     let tree = KdTree::new(&dense)?;
-    let tree_time = t1.elapsed().as_secs_f64();
+    let tree_time = 1e3 * t1.elapsed().as_secs_f64();
 
     let t2 = Instant::now();
     let shot_opts =
         ShotOptions { radius: options.shot_radius, frame: ShotFrame::World, ..Default::default() };
     let shots = compute_shot_with_tree(&tree, &dense, &dense_normals, &features, &shot_opts, progress)?;
-    let shot = t2.elapsed().as_secs_f64();
+    let shot = 1e3 * t2.elapsed().as_secs_f64();
     let valid_count = shots.num_valid();
     if valid_count < 2 {
         return Err(OffsetsError::TooFewFeatures {
@@ -309,7 +309,7 @@ pub fn prepare_features(
         spacing_scale,
         dense_spacing,
         feature_spacing,
-        timings: FeatureTimings { sampling, tree: tree_time, shot },
+        timings: FeatureTimings { sampling_ms: sampling, tree_ms: tree_time, shot_ms: shot },
         distances: OnceLock::new(),
     })
 }

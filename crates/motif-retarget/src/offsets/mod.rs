@@ -366,7 +366,8 @@ pub struct DominantOffset {
 /// A principal offset: a generator of the model's translational lattice (thesis 4.2.1, 4.4).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PrincipalOffset {
-    /// The offset, normalised units (canonical half-space).
+    /// The offset, normalised units, with its largest-magnitude component positive (the
+    /// direction retargeting grows along, [`crate::retarget::orient_offsets`]).
     pub offset: Point3,
     /// The offset in model units.
     pub offset_model: Point3,
@@ -445,25 +446,25 @@ pub struct RepetitionVerdict {
     pub summary: String,
 }
 
-/// Wall-clock seconds per stage.
+/// Wall-clock milliseconds per stage (`_ms`, as every report of Motif gives times).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct StageTimings {
     /// Normalising and sampling (both scales, vertices).
-    pub sampling: f64,
+    pub sampling_ms: f64,
     /// Kd-tree of the dense cloud.
-    pub tree: f64,
+    pub tree_ms: f64,
     /// SHOT descriptors.
-    pub shot: f64,
+    pub shot_ms: f64,
     /// Feature matching (eq. 4.1).
-    pub matching: f64,
+    pub matching_ms: f64,
     /// Histogram and peaks.
-    pub histogram: f64,
+    pub histogram_ms: f64,
     /// ICP refinement of the dominant offsets.
-    pub refinement: f64,
+    pub refinement_ms: f64,
     /// Principal offsets, period reduction and verdict.
-    pub principal: f64,
+    pub principal_ms: f64,
     /// Everything.
-    pub total: f64,
+    pub total_ms: f64,
 }
 
 /// Counts of the sampled model.
@@ -536,7 +537,7 @@ pub fn analyze_offsets(
     // The features are dropped here: keeping the matching distances for a retargeting MRF would
     // be wasted work.
     let mut a = analyze(&features, options, 0, progress)?;
-    a.timings.total = t0.elapsed().as_secs_f64();
+    a.timings.total_ms = 1e3 * t0.elapsed().as_secs_f64();
     Ok(a)
 }
 
@@ -570,13 +571,13 @@ fn analyze(
         // Features analysed twice keep the first table (the same distances).
         let _ = features.distances.set(std::sync::Arc::new(d));
     }
-    let matching = t.elapsed().as_secs_f64();
+    let matching = 1e3 * t.elapsed().as_secs_f64();
 
     let t = Instant::now();
     let hist =
         OffsetHistogram::from_offsets(matches.iter().map(|m| m.offset), options.bin_size, options.sign);
     let peaks = hist.peaks(options.nms_radius, options.min_peak_support);
-    let histogram_time = t.elapsed().as_secs_f64();
+    let histogram_time = 1e3 * t.elapsed().as_secs_f64();
 
     // Refinement.
     let t = Instant::now();
@@ -638,7 +639,7 @@ fn analyze(
             dominant[i].status = DominantStatus::Duplicate { of: j };
         }
     }
-    let refinement = t.elapsed().as_secs_f64();
+    let refinement = 1e3 * t.elapsed().as_secs_f64();
 
     // Principal offsets (thesis 4.4): greedy by support with the angle test.
     let t = Instant::now();
@@ -768,6 +769,16 @@ fn analyze(
             }
             let (overlap, contrast) = prober.contrast(offset);
             let length = norm(offset);
+            // Measured as found (the overlap of `u` and of `−u` differ by sampling), then
+            // reported with its largest-magnitude component positive, the orientation
+            // retargeting grows along ([`crate::retarget::orient_offsets`]), so `motif offsets`
+            // and `motif retarget` print the same vector. The histogram's half-space (first
+            // non-zero coordinate positive, beyond 10⁻¹²) gave the heat sink's screw-hole pitch
+            // as (2·10⁻⁹, −0.238, −3·10⁻⁹) normalised, printed as −0.0125 along y.
+            let offset = crate::retarget::orient_offsets(&[offset])[0];
+            if let Some(snap) = vertex_snap.as_mut() {
+                snap.offset = offset;
+            }
             PrincipalOffset {
                 offset,
                 offset_model: nz.offset_to_model(offset),
@@ -795,20 +806,20 @@ fn analyze(
     });
     let top_peak_share = dominant.first().map_or(0.0, |d| d.peak.support as f64 / total);
     let repetition = verdict(&principal, &dominant, top_peak_share, uniform_share, options);
-    let principal_time = t.elapsed().as_secs_f64();
+    let principal_time = 1e3 * t.elapsed().as_secs_f64();
 
     let timings = StageTimings {
-        sampling: features.timings.sampling,
-        tree: features.timings.tree,
-        shot: features.timings.shot,
-        matching,
-        histogram: histogram_time,
-        refinement,
-        principal: principal_time,
-        total: features.timings.sampling
-            + features.timings.tree
-            + features.timings.shot
-            + t_start.elapsed().as_secs_f64(),
+        sampling_ms: features.timings.sampling_ms,
+        tree_ms: features.timings.tree_ms,
+        shot_ms: features.timings.shot_ms,
+        matching_ms: matching,
+        histogram_ms: histogram_time,
+        refinement_ms: refinement,
+        principal_ms: principal_time,
+        total_ms: features.timings.sampling_ms
+            + features.timings.tree_ms
+            + features.timings.shot_ms
+            + 1e3 * t_start.elapsed().as_secs_f64(),
     };
     let mut axis_order: Vec<usize> = (0..principal.len()).collect();
     axis_order.sort_by_key(|&i| {
