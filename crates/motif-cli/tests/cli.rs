@@ -2309,18 +2309,49 @@ fn sparsity_fails_on_a_named_bad_file_and_skips_one_in_a_folder() {
     assert!(models.iter().any(|m| m["error"].as_str().is_some_and(|e| e.contains("NaN"))), "{report}");
 }
 
-/// Retargeting stitches positions and triangles: what else the input's vertices carry is named
-/// in a warning (it was dropped without a word).
+/// The input's per-vertex data comes out on the output (it was dropped, with a warning): normals
+/// through stitching and through a plain resize (turned as normals turn under the scaling), and a
+/// warning names what the output's format cannot hold.
 #[test]
-fn retarget_names_the_vertex_data_it_does_not_carry() {
+fn retarget_carries_the_vertex_data_or_names_what_the_format_drops() {
     let d = tmp();
     assert!(motif(&["example", "shelf", "s.obj"], d.path()).status.success());
     assert!(motif(&["normals", "s.obj", "n.ply"], d.path()).status.success());
-    let o = motif(&["-q", "retarget", "n.ply", "--steps", "1", "-o", "r.ply"], d.path());
+    let o = motif(&["-q", "retarget", "n.ply", "--steps", "1", "-o", "r.ply", "--json", "r.json"], d.path());
+    assert!(o.status.success() && stderr(&o).is_empty(), "{}", stderr(&o));
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.path().join("r.json")).unwrap()).unwrap();
+    assert_eq!(r["vertex_data"]["carried"], serde_json::json!(["normals"]), "{r}");
+    let info = stdout(&motif(&["info", "r.ply"], d.path()));
+    assert!(info.contains("per vertex   normals"), "{info}");
+    let o = motif(&["-q", "retarget", "n.ply", "--steps", "1", "-o", "r.stl"], d.path());
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(stderr(&o).contains("the vertices' normals are not carried into r.ply"), "{}", stderr(&o));
+    assert!(stderr(&o).contains("r.stl: the vertex normals (STL keeps facet normals only"), "{}", stderr(&o));
     let o = motif(&["-q", "retarget", "s.obj", "--steps", "1", "-o", "r.obj"], d.path());
-    assert!(o.status.success() && !stderr(&o).contains("not carried"), "{}", stderr(&o));
+    assert!(o.status.success() && stderr(&o).is_empty(), "{}", stderr(&o));
+    // A plain resize to twice the width: a normal (1, 1, 0)/√2 turns to (1, 2, 0)/√5.
+    assert!(motif(&["example", "gear", "gear.obj"], d.path()).status.success());
+    assert!(motif(&["normals", "gear.obj", "gn.ply"], d.path()).status.success());
+    let size = stdout(&motif(&["info", "gear.obj", "--json"], d.path()));
+    let size: serde_json::Value = serde_json::from_str(&size).unwrap();
+    let ext: Vec<f64> = (0..3)
+        .map(|k| size["bbox_max"][k].as_f64().unwrap() - size["bbox_min"][k].as_f64().unwrap())
+        .collect();
+    let target = format!("{},{},{}", 2.0 * ext[0], ext[1], ext[2]);
+    let o = motif(
+        &["-q", "retarget", "gn.ply", "--target-size", &target, "--plain-resize", "-o", "g2.ply"],
+        d.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let before = motif_core::io::read(&d.path().join("gn.ply")).unwrap().vertices;
+    let after = motif_core::io::read(&d.path().join("g2.ply")).unwrap().vertices;
+    let (nb, na) = (before.normals.unwrap(), after.normals.unwrap());
+    assert_eq!(nb.len(), na.len());
+    for (b, a) in nb.iter().zip(&na) {
+        let m = [b[0] / 2.0, b[1], b[2]];
+        let l = (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]).sqrt();
+        assert!((0..3).all(|k| (a[k] - m[k] / l).abs() < 1e-5), "{b:?} -> {a:?}");
+    }
 }
 
 /// A reader that stops reading (`| head`) is no failure of the work: the outputs finished when

@@ -463,6 +463,72 @@ fn cutting_at_voxel_faces_stretches_a_panel_spanning_all_cells() {
     assert!(two_sided_distance(&a.mesh, &b.mesh, 0.01) < 1e-9);
 }
 
+/// The input's per-vertex data follows each copied vertex from where it lies on the input: on a
+/// shelf with a one-quad back panel (cut at every voxel face, so most of the panel's output
+/// vertices lie inside its two input triangles), a value linear in position comes out, at every
+/// vertex with an origin, as the value at the vertex moved back by one of the copies' shifts.
+#[test]
+fn per_vertex_data_is_carried_from_where_each_copy_lies_on_the_input() {
+    use motif_core::point_cloud::{Attribute, AttributeData, PointCloud};
+    use motif_retarget::retarget::carry_vertex_data;
+    let pitch = shelf(&ShelfOptions::default()).unwrap().structure.cell_pitch;
+    let input = shelf_with_back([4, 3]);
+    let h = |p: Point3| 3.0 * p[0] - 2.0 * p[1] + 5.0 * p[2] + 1.0;
+    let data = PointCloud {
+        positions: Vec::new(),
+        normals: Some(input.positions.iter().map(|_| [0.0, 0.6, 0.8]).collect()),
+        colors: Some((0..input.positions.len()).map(|v| [(v % 256) as u8, 7, 9]).collect()),
+        attributes: vec![
+            Attribute {
+                name: "h".into(),
+                data: AttributeData::Float(input.positions.iter().map(|&p| h(p)).collect()),
+            },
+            Attribute {
+                name: "id".into(),
+                data: AttributeData::Int((0..input.positions.len() as i64).collect()),
+            },
+        ],
+    };
+    let options = RetargetOptions { assignment: TriangleAssignment::Cut, ..Default::default() };
+    let session = RetargetSession::new(&input, &pitch, &options, &NoProgress).unwrap();
+    let out = session.clone().retarget([1, 1, 0], &NoProgress).unwrap();
+    let origins = session.vertex_origins(&out);
+    let carried = carry_vertex_data(&data, &input.triangles, &out.mesh, &origins);
+    assert_eq!(carried.positions, out.mesh.positions);
+    let with_origin = origins.iter().filter(|o| o.is_some()).count();
+    eprintln!("{with_origin} of {} output vertices lie on the input", origins.len());
+    assert_eq!(with_origin, origins.len(), "a closed shelf grown needs no caps");
+    let AttributeData::Float(hs) = &carried.attributes[0].data else { panic!("h is real") };
+    let AttributeData::Int(ids) = &carried.attributes[1].data else { panic!("id is an integer") };
+    let shifts: Vec<Point3> = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]
+        .iter()
+        .map(|k| add(scale(pitch[0], k[0]), scale(pitch[1], k[1])))
+        .collect();
+    let mut interior = 0;
+    for (v, o) in origins.iter().enumerate() {
+        let o = o.expect("every vertex has an origin");
+        let p = out.mesh.positions[v];
+        let err = shifts.iter().map(|&t| (hs[v] - h(sub(p, t))).abs()).fold(f64::INFINITY, f64::min);
+        assert!(err < 1e-9, "vertex {v} at {p:?}: h {} off by {err}", hs[v]);
+        if o.weights.iter().all(|&w| w < 1.0) {
+            interior += 1;
+        }
+        // An integer attribute is one of the origin triangle's corners', and so is the colour
+        // of a vertex copied from an input vertex.
+        let corners = input.triangles[o.triangle as usize];
+        assert!(corners.iter().any(|&c| c as i64 == ids[v]), "vertex {v}: id {}", ids[v]);
+        if let Some(k) = o.weights.iter().position(|&w| w == 1.0) {
+            assert_eq!(
+                carried.colors.as_ref().unwrap()[v],
+                data.colors.as_ref().unwrap()[corners[k] as usize]
+            );
+        }
+        let n = carried.normals.as_ref().unwrap()[v];
+        assert!((n[0]).abs() < 1e-12 && (n[1] - 0.6).abs() < 1e-12 && (n[2] - 0.8).abs() < 1e-12, "{n:?}");
+    }
+    assert!(interior > 20, "the back panel's cut vertices: {interior}");
+}
+
 // ---------------------------------------------------------------------------------------------
 // Tests: fence and facade
 // ---------------------------------------------------------------------------------------------

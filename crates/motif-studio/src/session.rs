@@ -81,7 +81,9 @@ struct DeformState {
 struct RetargetState {
     session: RetargetSession,
     principal: Vec<Point3>,
-    last: Option<TriMesh>,
+    /// The last result, kept whole: its labels place each vertex on the input for the export's
+    /// per-vertex data.
+    last: Option<motif_retarget::retarget::Retargeted>,
     /// Open edges of the input, beside which the output's are reported.
     input_boundary: usize,
 }
@@ -695,10 +697,9 @@ pub fn export(
         ExportSource::Deformed => {
             let deformed = matches!((&s.deform, &loaded.mesh), (Some(d), Some(_)) if d.solved);
             let model = match (&s.deform, &loaded.mesh) {
-                (Some(d), Some(mesh)) if d.solved => Model::from_mesh(&TriMesh {
-                    positions: d.session.positions().to_vec(),
-                    triangles: mesh.triangles.clone(),
-                }),
+                (Some(d), Some(mesh)) if d.solved => {
+                    deformed_with_vertex_data(&loaded.model, d.session.positions().to_vec(), &mesh.triangles)
+                }
                 _ => loaded.model.clone(),
             };
             // A deformed model's annotation names its regions by the vertices they hold on the
@@ -758,12 +759,13 @@ pub fn export(
             }
         }
         ExportSource::Retargeted => {
-            let mesh = s
+            let (r, res) = s
                 .retarget
                 .as_ref()
-                .and_then(|r| r.last.as_ref())
+                .and_then(|r| r.last.as_ref().map(|last| (r, last)))
                 .ok_or_else(|| StudioError::NotReady("nothing resized yet".to_string()))?;
-            motif_core::io::write(&file, &Model::from_mesh(mesh), &WriteOptions::default())?;
+            let model = with_vertex_data(&loaded.model, &res.mesh, || r.session.vertex_origins(res));
+            motif_core::io::write(&file, &model, &WriteOptions::default())?;
             written.push(s.sandbox.display(&file));
         }
     }
@@ -782,6 +784,37 @@ pub fn export(
     drop(writes);
     out.insert(0, Out::Text(ServerMessage::Saved { paths: written, notes }));
     Ok(out)
+}
+
+/// The retargeted `out` with the per-vertex data (normals, colours, attributes) of the model it
+/// was resized from, carried by `origins` ([`motif_retarget::retarget::carry_vertex_data`]); just
+/// the mesh when the model has none.
+fn with_vertex_data(
+    model: &Model,
+    out: &TriMesh,
+    origins: impl FnOnce() -> Vec<Option<motif_retarget::retarget::VertexOrigin>>,
+) -> Model {
+    let v = &model.vertices;
+    if v.normals.is_none() && v.colors.is_none() && v.attributes.is_empty() {
+        return Model::from_mesh(out);
+    }
+    let cloud = motif_retarget::retarget::carry_vertex_data(v, &model.triangles, out, &origins());
+    Model { vertices: cloud, ..Model::from_mesh(out) }
+}
+
+/// The deformed model: the rest model's colours and attributes on the moved vertices (one to
+/// one), and normals computed anew when it had some (the deformation turns the surface).
+fn deformed_with_vertex_data(model: &Model, positions: Vec<Point3>, triangles: &[[u32; 3]]) -> Model {
+    let mesh = TriMesh { positions, triangles: triangles.to_vec() };
+    let v = &model.vertices;
+    let normals = v.normals.as_ref().map(|_| mesh.vertex_normals());
+    let vertices = motif_core::point_cloud::PointCloud {
+        positions: mesh.positions.clone(),
+        normals,
+        colors: v.colors.clone(),
+        attributes: v.attributes.clone(),
+    };
+    Model { vertices, ..Model::from_mesh(&mesh) }
 }
 
 /// Whole cells of `mesh` along each offset: the extent along the offset's direction divided by
@@ -900,7 +933,7 @@ pub fn retarget(shared: &Shared, seq: u32, steps: [i32; 3]) -> Result<Vec<Out>> 
             FrameTiming { solve_ms: ms as f32, ..Default::default() },
         )),
     ];
-    r.last = Some(res.mesh);
+    r.last = Some(res);
     Ok(out)
 }
 

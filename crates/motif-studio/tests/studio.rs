@@ -477,6 +477,35 @@ async fn shelf_grows_by_one_cell_and_exports() {
     assert!(back.num_vertices() > 0);
 }
 
+/// A retargeted export keeps the model's vertex colours: grown along x, a shelf coloured by
+/// height comes out coloured by height.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_retargeted_export_keeps_the_vertex_colours() {
+    let s = start().await;
+    let ex = motif_core::procedural::generate("shelf", 0).unwrap();
+    let top = ex.mesh.aabb().unwrap().max[1];
+    let red = |p: [f64; 3]| (200.0 * p[1] / top).round() as u8;
+    let mut model = motif_core::io::Model::from_mesh(&ex.mesh);
+    model.vertices.colors = Some(ex.mesh.positions.iter().map(|&p| [red(p), 40, 90]).collect());
+    motif_core::io::write(&s.root.join("coloured.ply"), &model, &Default::default()).unwrap();
+    let mut ws = connect(&s.url).await;
+    send(&mut ws, json!({"type": "open", "path": "coloured.ply"})).await;
+    assert!(matches!(next_text(&mut ws).await, ServerMessage::Model { .. }));
+    send(&mut ws, json!({"type": "offsets"})).await;
+    assert!(matches!(next_text(&mut ws).await, ServerMessage::Offsets { .. }));
+    send(&mut ws, json!({"type": "retarget", "seq": 1, "steps": [1, 0, 0]})).await;
+    assert!(matches!(next_text(&mut ws).await, ServerMessage::Retargeted { .. }));
+    assert!(matches!(next(&mut ws).await, Reply::Binary(_)));
+    send(&mut ws, json!({"type": "export", "path": "grown.ply", "source": "retargeted"})).await;
+    assert!(matches!(next_text(&mut ws).await, ServerMessage::Saved { .. }));
+    let back = motif_core::io::read(&s.root.join("grown.ply")).unwrap();
+    assert!(back.vertices.len() > ex.mesh.num_vertices());
+    let colours = back.vertices.colors.expect("the export has the colours");
+    for (p, c) in back.vertices.positions.iter().zip(&colours) {
+        assert!(c[0].abs_diff(red(*p)) <= 1 && c[1] == 40 && c[2] == 90, "{p:?}: {c:?}");
+    }
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn detections_load_from_a_result_file() {
     let s = start().await;

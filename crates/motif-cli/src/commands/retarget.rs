@@ -5,14 +5,16 @@ use std::time::Instant;
 
 use anyhow::Context;
 use motif_core::TriMesh;
+use motif_core::geometry::Point3;
 use motif_core::geometry::{dot, normalize};
 use motif_core::io::{Model, WriteOptions};
+use motif_core::point_cloud::PointCloud;
 use motif_retarget::offsets::{
     OffsetAnalysis, OffsetOptions, Repetition, analyze_features, prepare_features,
 };
 use motif_retarget::retarget::{
     RetargetError, RetargetMethod, RetargetOptions, RetargetReport, RetargetSession, TriangleAssignment,
-    orient_offsets,
+    carry_vertex_data, orient_offsets,
 };
 use serde::Serialize;
 
@@ -41,8 +43,22 @@ struct Report<'a> {
     /// `motif info` gives them; absent for a plain resize, which keeps the input's.
     #[serde(skip_serializing_if = "Option::is_none")]
     edges: Option<EdgesReport>,
+    /// The input's per-vertex data carried onto the output, when it has any.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    vertex_data: Option<VertexDataReport>,
     analysis_ms: f64,
     total_ms: f64,
+}
+
+/// What the output's vertices carry of the input's (`carry_vertex_data`).
+#[derive(Debug, Serialize)]
+struct VertexDataReport {
+    /// What was carried: `normals`, `colours` and attribute names.
+    carried: Vec<String>,
+    /// Output vertices that lie on the input surface (interpolated there).
+    interpolated: usize,
+    /// Output vertices capping added, which took their neighbours' data.
+    from_neighbours: usize,
 }
 
 #[derive(Debug, Serialize)]
@@ -227,7 +243,7 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         (Some(&a.output), crate::output::OutputKind::Model),
         (a.preview.as_deref(), crate::output::OutputKind::Png),
     ])?;
-    let mesh = read_mesh_saying_what_is_lost(&a.mesh, &a.output)?;
+    let (mesh, vertex_data) = read_mesh_and_vertex_data(&a.mesh, &a.output)?;
     let given = a.offsets.as_deref().map(parse_offsets).transpose()?;
     // A given offset at least as long as the model along it shifts copies clear of each other:
     // nothing overlaps to stitch, and the "copies" come out as separate models.
@@ -324,7 +340,14 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
                 .collect(),
             triangles: mesh.triangles.clone(),
         };
-        motif_core::io::write(&a.output, &Model::from_mesh(&out), &WriteOptions::default())?;
+        let model = match &vertex_data {
+            Some(data) => Model {
+                vertices: scaled_vertex_data(data, out.positions.clone(), s),
+                ..Model::from_mesh(&out)
+            },
+            None => Model::from_mesh(&out),
+        };
+        motif_core::io::write(&a.output, &model, &WriteOptions::default())?;
         if let Some(p) = &a.preview {
             let (view, up) = preview_camera(&mesh, &[]);
             let text = motif_retarget::plot::PreviewText {
@@ -380,6 +403,11 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             plain_resize: Some(s),
             clean_alternatives: None,
             edges: None,
+            vertex_data: vertex_data.as_ref().map(|d| VertexDataReport {
+                carried: vertex_data_names(d),
+                interpolated: out.positions.len(),
+                from_neighbours: 0,
+            }),
             analysis_ms,
             total_ms: ms_since(t0),
         };
@@ -549,7 +577,23 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     };
     let alternatives = (res.report.infinite_seams > 0)
         .then(|| session.clean_alternatives(to_solver(steps)).into_iter().map(to_user).collect::<Vec<_>>());
-    motif_core::io::write(&a.output, &Model::from_mesh(&res.mesh), &WriteOptions::default())?;
+    // The input's normals, colours and attributes, carried onto the copies (`carry_vertex_data`).
+    let carried = vertex_data.as_ref().map(|data| {
+        let origins = session.vertex_origins(&res);
+        let cloud = carry_vertex_data(data, &mesh.triangles, &res.mesh, &origins);
+        let interpolated = origins.iter().filter(|o| o.is_some()).count();
+        let report = VertexDataReport {
+            carried: vertex_data_names(data),
+            interpolated,
+            from_neighbours: origins.len() - interpolated,
+        };
+        (cloud, report)
+    });
+    let model = match &carried {
+        Some((cloud, _)) => Model { vertices: cloud.clone(), ..Model::from_mesh(&res.mesh) },
+        None => Model::from_mesh(&res.mesh),
+    };
+    motif_core::io::write(&a.output, &model, &WriteOptions::default())?;
     if let Some(p) = &a.preview {
         let (view, up) = preview_camera(&mesh, &principal);
         let shown: Vec<String> =
@@ -712,6 +756,7 @@ pub fn run(a: RetargetArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         plain_resize: None,
         clean_alternatives: alternatives,
         edges: Some(EdgesReport { input: input_edges, output: output_edges }),
+        vertex_data: carried.map(|(_, r)| r),
         analysis_ms,
         total_ms: ms_since(t0),
     };
@@ -802,36 +847,60 @@ fn nearest_steps(
 }
 
 /// Reads the mesh to retarget, with the reader's warnings (ignored texture coordinates,
-/// materials), and a warning naming what the vertices carry that the output will not: the
-/// stitched copies are built from positions and triangles, so colours, normals and other
-/// per-vertex attributes were dropped without a word (`convert` says so for the formats it
-/// writes).
-fn read_mesh_saying_what_is_lost(
+/// materials), and its per-vertex data (normals, colours, named attributes) when it has any: the
+/// output carries them ([`carry_vertex_data`]). A warning names what the output's format cannot
+/// hold of them (STL holds no vertex colours, only PLY holds named attributes).
+fn read_mesh_and_vertex_data(
     path: &std::path::Path,
     output: &std::path::Path,
-) -> anyhow::Result<TriMesh> {
+) -> anyhow::Result<(TriMesh, Option<PointCloud>)> {
     let model = super::read_model(path)?;
     for w in &model.warnings {
         super::warn(format!("{}: {w}", path.display()));
     }
     let v = &model.vertices;
-    let mut lost: Vec<String> = Vec::new();
-    if v.normals.is_some() {
-        lost.push("normals".into());
+    let has_data = v.normals.is_some() || v.colors.is_some() || !v.attributes.is_empty();
+    if model.is_mesh() && has_data {
+        if let Ok(format) = motif_core::io::Format::from_path(output) {
+            for l in motif_core::io::lost_in(format, v) {
+                super::warn(format!("{}: {l} could not be written", output.display()));
+            }
+        }
     }
-    if v.colors.is_some() {
-        lost.push("colours".into());
+    let data = (model.is_mesh() && has_data).then(|| PointCloud {
+        positions: Vec::new(),
+        normals: v.normals.clone(),
+        colors: v.colors.clone(),
+        attributes: v.attributes.clone(),
+    });
+    Ok((motif_core::io::read_mesh_from(model, path)?, data))
+}
+
+/// Names of what `data` holds per vertex, for the report.
+fn vertex_data_names(data: &PointCloud) -> Vec<String> {
+    let mut names = Vec::new();
+    if data.normals.is_some() {
+        names.push("normals".to_string());
     }
-    lost.extend(v.attributes.iter().map(|a| format!("`{}`", a.name)));
-    if model.is_mesh() && !lost.is_empty() {
-        super::warn(format!(
-            "{}: the vertices' {} are not carried into {} (retargeting stitches positions and triangles)",
-            path.display(),
-            lost.join(", "),
-            output.display()
-        ));
+    if data.colors.is_some() {
+        names.push("colours".to_string());
     }
-    Ok(motif_core::io::read_mesh_from(model, path)?)
+    names.extend(data.attributes.iter().map(|a| a.name.clone()));
+    names
+}
+
+/// The plain resize of per-vertex data: colours and attributes unchanged, normals transformed
+/// as normals are under the scaling `s` (by its inverse) and renormalised.
+fn scaled_vertex_data(data: &PointCloud, positions: Vec<Point3>, s: [f64; 3]) -> PointCloud {
+    let normals = data.normals.as_ref().map(|ns| {
+        ns.iter()
+            .map(|n| {
+                let m = [0, 1, 2].map(|k| if s[k] != 0.0 { n[k] / s[k] } else { n[k] });
+                normalize(m).unwrap_or(*n)
+            })
+            .collect()
+    });
+    PointCloud { positions, normals, colors: data.colors.clone(), attributes: data.attributes.clone() }
 }
 
 #[cfg(test)]

@@ -82,6 +82,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod attributes;
 mod canonical;
 mod caps;
 mod cut;
@@ -101,6 +102,7 @@ use serde::{Deserialize, Serialize};
 use crate::alpha_expansion::{AlphaExpansionOptions, Termination};
 use crate::offsets::OffsetFeatures;
 
+pub use attributes::{VertexOrigin, carry_vertex_data};
 pub use canonical::{Mat3, Normalisation};
 pub use error::{RetargetError, RetargetResult};
 
@@ -489,6 +491,41 @@ pub fn open_edges_after(output_boundary_edges: usize, input_boundary_edges: usiz
 }
 
 impl RetargetSession {
+    /// The seam-welding tolerance, model units: a thousandth of a cell
+    /// ([`RetargetOptions::weld_tolerance`]), but never more than a twentieth of the model's
+    /// thinnest extent: a bar 10⁴ long and 1 thick, grown along a cell of 2500, would otherwise
+    /// weld the corners of its cross-section into one point.
+    fn weld_tolerance(&self) -> f64 {
+        let min_pitch = (0..3)
+            .filter(|&a| a < self.lattice.num_active)
+            .map(|a| self.lattice.pitch[a])
+            .fold(f64::INFINITY, f64::min);
+        let thinnest = self.mesh.aabb().map_or(f64::INFINITY, |b| {
+            (0..3).map(|k| b.max[k] - b.min[k]).filter(|&e| e > 0.0).fold(f64::INFINITY, f64::min)
+        });
+        (self.options.weld_tolerance * min_pitch / self.lattice.normalisation.scale)
+            .min(MAX_WELD_SHARE_OF_THINNEST * thinnest)
+    }
+
+    /// Where each vertex of `out` (a result of this session) lies on the input surface, `None`
+    /// for the vertices capping added; see [`attributes`]. With
+    /// [`attributes::carry_vertex_data`] this carries the input's normals, colours and other
+    /// per-vertex data onto the output.
+    pub fn vertex_origins(&self, out: &Retargeted) -> Vec<Option<VertexOrigin>> {
+        let translation = |f: usize| {
+            let k = out.triangle_voxels.get(f).and_then(|&x| out.voxel_labels.get(x as usize));
+            k.map_or([0.0; 3], |&k| self.lattice.translation(k))
+        };
+        attributes::vertex_origins(
+            &self.mesh,
+            self.pieces.parents(),
+            self.pieces.originals(),
+            &out.mesh,
+            &translation,
+            self.weld_tolerance(),
+        )
+    }
+
     /// Normalises `mesh`, builds the canonical space of `principal_offsets` (model units, 1–3
     /// vectors), voxelises the input and computes the voxels' descriptor sets.
     ///
@@ -805,18 +842,7 @@ impl RetargetSession {
 
         progress.start("stitch", 0);
         let t_stitch = Instant::now();
-        let min_pitch = (0..3)
-            .filter(|&a| a < self.lattice.num_active)
-            .map(|a| self.lattice.pitch[a])
-            .fold(f64::INFINITY, f64::min);
-        // A thousandth of a cell, but never more than a twentieth of the model's thinnest
-        // extent: a bar 10⁴ long and 1 thick, grown along a cell of 2500, would otherwise weld
-        // the corners of its cross-section into one point.
-        let thinnest = self.mesh.aabb().map_or(f64::INFINITY, |b| {
-            (0..3).map(|k| b.max[k] - b.min[k]).filter(|&e| e > 0.0).fold(f64::INFINITY, f64::min)
-        });
-        let weld_tolerance = (self.options.weld_tolerance * min_pitch / self.lattice.normalisation.scale)
-            .min(MAX_WELD_SHARE_OF_THINNEST * thinnest);
+        let weld_tolerance = self.weld_tolerance();
         let stitched = stitch::stitch(
             &self.mesh,
             &self.tri_voxel,

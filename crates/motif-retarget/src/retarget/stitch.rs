@@ -62,6 +62,16 @@ impl Pieces {
         Pieces { parent, original, start, list }
     }
 
+    /// The input triangle of each piece (each triangle of the cut mesh).
+    pub fn parents(&self) -> &[u32] {
+        &self.parent
+    }
+
+    /// The input's triangles.
+    pub fn originals(&self) -> &[[u32; 3]] {
+        &self.original
+    }
+
     fn of(&self, p: usize) -> &[u32] {
         &self.list[self.start[p] as usize..self.start[p + 1] as usize]
     }
