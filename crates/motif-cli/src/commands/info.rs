@@ -77,7 +77,11 @@ pub fn run(a: InfoArgs, _g: &GlobalArgs) -> anyhow::Result<()> {
     println!("  format       {} ({})", r.format, r.kind);
     println!("  vertices     {}", r.vertices);
     if model.is_mesh() {
-        println!("  faces        {} in file, {} triangles", r.faces_in_file, r.triangles);
+        println!(
+            "  faces        {} in file, {}",
+            r.faces_in_file,
+            crate::output::count(r.triangles, "triangle", "triangles")
+        );
     }
     // Lengths at the model's scale (a model 1e-9 across would print as zeros with 6 decimals).
     let len = |x: f64| format_length(x, r.diagonal, 6);
