@@ -768,6 +768,27 @@ fn deform_keeps_symmetry_exact_and_no_symmetry_does_not() {
     let b = json_of(&motif(&["info", "out.obj", "--json"], d.path()));
     assert_eq!(a["triangles"], b["triangles"]);
     assert_ne!(a["bbox_max"], b["bbox_max"]);
+    // A coloured PLY with normals keeps its colours vertex for vertex, and its normals are those
+    // of the deformed surface.
+    let mut model = motif_core::io::read(&d.path().join("fan.obj")).unwrap();
+    let n = model.vertices.len();
+    model.vertices.colors = Some((0..n).map(|v| [(v % 251) as u8, (v % 13) as u8, 200]).collect());
+    model.vertices.normals = Some(model.mesh().vertex_normals());
+    motif_core::io::write(&d.path().join("fan.ply"), &model, &Default::default()).unwrap();
+    let mut args_c = args.to_vec();
+    args_c[1] = "fan.ply";
+    args_c[7] = "out.ply";
+    let o = motif(&args_c, d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = motif_core::io::read(&d.path().join("out.ply")).unwrap();
+    assert_eq!(out.vertices.colors, model.vertices.colors);
+    // Stored as 32-bit floats.
+    let close = |a: &[[f64; 3]], b: &[[f64; 3]]| {
+        a.iter().zip(b).all(|(p, q)| (0..3).all(|k| (p[k] - q[k]).abs() < 1e-6))
+    };
+    let normals = out.vertices.normals.as_deref().expect("the output has normals");
+    assert!(close(normals, &out.mesh().vertex_normals()), "the normals are the deformed surface's");
+    assert!(!close(normals, model.vertices.normals.as_deref().unwrap()), "the surface turned");
     // No handles: a clear error and no output.
     std::fs::write(d.path().join("none.json"), r#"{"format":"motif_handles_v1","handles":[]}"#).unwrap();
     let o = motif(

@@ -69,7 +69,25 @@ pub fn run(a: DeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         (a.preview.as_deref(), crate::output::OutputKind::Png),
     ])?;
     let t0 = Instant::now();
-    let mesh = motif_core::io::read_mesh(&a.mesh)?;
+    let model = super::read_model(&a.mesh)?;
+    for w in &model.warnings {
+        super::warn(format!("{}: {w}", a.mesh.display()));
+    }
+    // The vertices keep their colours and attributes through the deformation (one to one); normals,
+    // when the input has them, are computed anew on the deformed surface.
+    let vertex_data = {
+        let v = &model.vertices;
+        (v.normals.is_some() || v.colors.is_some() || !v.attributes.is_empty())
+            .then(|| (v.normals.is_some(), v.colors.clone(), v.attributes.clone()))
+    };
+    if vertex_data.is_some() {
+        if let Ok(format) = motif_core::io::Format::from_path(&a.output) {
+            for l in motif_core::io::lost_in(format, &model.vertices) {
+                super::warn(format!("{}: {l} could not be written", a.output.display()));
+            }
+        }
+    }
+    let mesh = motif_core::io::read_mesh_from(model, &a.mesh)?;
     let annotation = match &a.symmetry {
         Some(p) => read_annotation(p)?,
         None if a.no_symmetry => SymmetryAnnotation {
@@ -167,7 +185,14 @@ pub fn run(a: DeformArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         Some(SymmetryMaps::new(&mesh, &annotation)?.residual(&positions)?)
     };
     let out_mesh = motif_core::TriMesh { positions, triangles: mesh.triangles.clone() };
-    motif_core::io::write(&a.output, &Model::from_mesh(&out_mesh), &WriteOptions::default())?;
+    let mut out_model = Model::from_mesh(&out_mesh);
+    if let Some((normals, colors, attributes)) = &vertex_data {
+        let v = &mut out_model.vertices;
+        v.normals = normals.then(|| out_mesh.vertex_normals());
+        v.colors = colors.clone();
+        v.attributes = attributes.clone();
+    }
+    motif_core::io::write(&a.output, &out_model, &WriteOptions::default())?;
     if let Some(png) = &a.preview {
         let last = frames.last().map(|f| f.as_slice()).unwrap_or_default();
         let mut notes = vec![(
