@@ -161,7 +161,7 @@ fn plain_number_error(e: &clap::Error) {
     }
     let negative = text.contains("invalid value '-");
     let said = if negative {
-        "negative, but it takes a whole number, 0 or more"
+        "negative, but it takes a whole number (of the range its help gives)"
     } else {
         "not a whole number (it takes one such as 0, 1, 2)"
     };

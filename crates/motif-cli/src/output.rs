@@ -339,6 +339,9 @@ fn io_exit_code(e: &std::io::Error) -> u8 {
 /// when the result was written, after the whole computation.
 pub fn check_outputs(outputs: &[Option<&Path>], inputs: &[&Path], force: bool) -> anyhow::Result<()> {
     let on_stdout = outputs.iter().flatten().filter(|o| **o == Path::new("-")).count();
+    if on_stdout == 1 {
+        STDOUT_DOCUMENT.store(true, std::sync::atomic::Ordering::Relaxed);
+    }
     if on_stdout > 1 {
         return Err(bad_input(format!(
             "{on_stdout} outputs are given as - (standard output), which would print them one after \
@@ -476,9 +479,20 @@ pub fn maybe_json<T: Serialize>(dest: &Option<PathBuf>, value: &T) -> anyhow::Re
     Ok(())
 }
 
-/// True when the JSON report goes to stdout, so human-readable text must not.
+/// Set by [`check_outputs`] when one of the command's outputs (`-o -`, `--gt -`, `--json` with no
+/// file) is written to stdout: stdout then carries that document alone.
+static STDOUT_DOCUMENT: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// True when the JSON report, or another output checked by [`check_outputs`] (`detect -o -`,
+/// `example --gt -`), goes to stdout, so human-readable text must not: `detect -o - | jq` read
+/// the result followed by the summary lines, which no JSON reader accepts.
 pub fn json_on_stdout(dest: &Option<PathBuf>) -> bool {
-    dest.as_deref() == Some(Path::new("-"))
+    dest.as_deref() == Some(Path::new("-")) || STDOUT_DOCUMENT.load(std::sync::atomic::Ordering::Relaxed)
+}
+
+/// Whether some output of the command goes to stdout ([`check_outputs`]).
+pub fn stdout_is_a_document() -> bool {
+    STDOUT_DOCUMENT.load(std::sync::atomic::Ordering::Relaxed)
 }
 
 /// Milliseconds since `t`, rounded to microseconds for reports.

@@ -716,22 +716,74 @@ fn symmetry_detect_writes_an_annotation_and_mrf_solve_reports_energy() {
 #[test]
 fn the_examples_own_drag_deforms_with_default_settings() {
     // The gear's handle spheres (5% of its diagonal) were narrower than the default samples'
-    // spacing, and deform refused them.
-    // A handle the symmetries hold back is warned about: the fan's drag fixes one end of its
-    // longest axis and lifts the other, which its rotations cannot follow (they move both ends
-    // alike); the chair's drag they can.
+    // spacing, and deform refused them. The fan's and the gear's drags fixed one end of the
+    // longest axis and lifted the other, which their rotations cannot follow (they move both
+    // ends alike): they fix the hub and the bore now and pull outward. The fan, the chair and
+    // the windmill then reach their targets; the gear's D17h has no motion that does not
+    // stretch its ring, and its pull ends short, with the warning.
     let d = tmp();
-    for (ex, held_back) in [("gear", true), ("fan", true), ("chair", false)] {
+    for (ex, held_back) in [("gear", true), ("fan", false), ("chair", false), ("windmill", false)] {
         let args = ["example", ex, "e.obj", "--annotation", "e.sym.json", "--handles", "e.h.json"];
         assert!(motif(&args, d.path()).status.success());
         let o = motif(
-            &["deform", "e.obj", "--symmetry", "e.sym.json", "--handles", "e.h.json", "-o", "out.obj"],
+            &[
+                "deform",
+                "e.obj",
+                "--symmetry",
+                "e.sym.json",
+                "--handles",
+                "e.h.json",
+                "-o",
+                "out.obj",
+                "--json",
+            ],
             d.path(),
         );
         assert!(o.status.success(), "{ex}: {}", stderr(&o));
-        let warned = stderr(&o).contains("warning: handle") && stderr(&o).contains("from its target");
-        assert_eq!(warned, held_back, "{ex}: {}", stderr(&o));
+        assert_eq!(stderr(&o).contains("warning: handle"), held_back, "{ex}: {}", stderr(&o));
+        let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let worst = r["handle_fit"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|f| f["max_error"].as_f64().unwrap())
+            .fold(0.0, f64::max);
+        assert_eq!(
+            worst > 0.01,
+            held_back,
+            "{ex}: handle samples {worst:e} of the diagonal from their targets"
+        );
     }
+    // The old fan drag, one blade tip fixed and the opposite one lifted, is held back by the
+    // rotations, and said so.
+    assert!(motif(&["example", "fan", "e.obj", "--annotation", "e.sym.json"], d.path()).status.success());
+    let mesh = motif_core::io::read_mesh(&d.path().join("e.obj")).unwrap();
+    let end = |s: f64| *mesh.positions.iter().max_by(|p, q| (s * p[0]).total_cmp(&(s * q[0]))).unwrap();
+    let r = 0.08 * mesh.aabb().unwrap().diagonal();
+    let sphere = |c: [f64; 3]| {
+        format!(r#"{{"region":{{"sphere":{{"center":[{},{},{}],"radius":{r}}}}}}}"#, c[0], c[1], c[2])
+    };
+    let id = "[[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]";
+    let lift = "[[1,0,0,0],[0,1,0,0],[0,0,1,0.1],[0,0,0,1]]";
+    std::fs::write(
+        d.path().join("tips.json"),
+        format!(
+            r#"{{"format":"motif_handles_v1","handles":[{},{}],"frames":[[{id},{lift}]]}}"#,
+            sphere(end(-1.0)),
+            sphere(end(1.0))
+        ),
+    )
+    .unwrap();
+    let o = motif(
+        &["deform", "e.obj", "--symmetry", "e.sym.json", "--handles", "tips.json", "-o", "out.obj"],
+        d.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("warning: handle") && stderr(&o).contains("from its target"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 #[test]
@@ -2435,4 +2487,82 @@ fn retarget_reports_open_and_non_manifold_edges_a_closed_input_did_not_have() {
     assert!(n > 0 && stdout(&o).contains(&format!("non-manifold: {n} edges")), "{}", stdout(&o));
     let info = json_of(&motif(&["info", "gb.obj", "--json"], d.path()));
     assert_eq!(info["non_manifold_edges"].as_u64(), Some(n));
+}
+
+/// A document written to stdout (`-o -`, `--gt -`) is all stdout holds: the summary lines, which
+/// followed the JSON and broke every reader of it, go to stderr or are left out.
+#[test]
+fn a_document_on_stdout_is_all_that_stdout_holds() {
+    let d = tmp();
+    let o = motif(
+        &["example", "scene-facade", "s.ply", "--gt", "-", "--points", "20000", "--difficulty", "easy"],
+        d.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let gt: serde_json::Value = serde_json::from_slice(&o.stdout).expect("stdout is the ground truth alone");
+    assert!(gt["classes"].is_array(), "{gt}");
+    assert!(stderr(&o).contains("s.ply: scene-facade"), "the summary is on stderr: {}", stderr(&o));
+    let o = motif(&["detect", "s.ply", "-o", "-"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r: serde_json::Value = serde_json::from_slice(&o.stdout).expect("stdout is the result alone");
+    assert!(r["classes"].is_array(), "{r}");
+}
+
+/// Each transform maps the template's block onto the instance's block: the annotated block
+/// that instance 0's box overlaps most, moved by the transform, lands near the block the
+/// instance's box overlaps most. On this easy facade scene (a QA pass's, 2026-12-01) maps half
+/// onto a neighbouring window put it up to 0.92 of a block's size off (12 of 32 maps beyond a
+/// quarter); with maps placed back on their instances, 0.48 (7).
+#[test]
+fn detected_transforms_map_the_template_onto_its_instances() {
+    let d = tmp();
+    let args =
+        ["example", "scene-facade", "f.ply", "--gt", "g.json", "--difficulty", "easy", "--points", "60000"];
+    assert!(motif(&args, d.path()).status.success());
+    let o = motif(&["-q", "detect", "f.ply", "-o", "r.json"], d.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let read = |f: &str| -> serde_json::Value {
+        serde_json::from_slice(&std::fs::read(d.path().join(f)).unwrap()).unwrap()
+    };
+    let (r, g) = (read("r.json"), read("g.json"));
+    let v3 = |x: &serde_json::Value| -> [f64; 3] { std::array::from_fn(|k| x[k].as_f64().unwrap()) };
+    let boxed = |i: &serde_json::Value| (v3(&i["bbox_min"]), v3(&i["bbox_max"]));
+    let blocks: Vec<([f64; 3], [f64; 3])> = g["classes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|c| c["instances"].as_array().unwrap().iter().map(boxed))
+        .collect();
+    let overlap = |a: ([f64; 3], [f64; 3]), b: ([f64; 3], [f64; 3])| {
+        (0..3).map(|k| (a.1[k].min(b.1[k]) - a.0[k].max(b.0[k])).max(0.0)).product::<f64>()
+    };
+    let block = |b| *blocks.iter().max_by(|x, y| overlap(**x, b).total_cmp(&overlap(**y, b))).unwrap();
+    let centre = |b: ([f64; 3], [f64; 3])| -> [f64; 3] { std::array::from_fn(|k| 0.5 * (b.0[k] + b.1[k])) };
+    let mut offs = Vec::new();
+    for c in r["classes"].as_array().unwrap() {
+        let instances = c["instances"].as_array().unwrap();
+        let from = centre(block(boxed(&instances[0])));
+        for inst in &instances[1..] {
+            let to = block(boxed(inst));
+            let t: Vec<Vec<f64>> = inst["transform"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|row| v3(row).to_vec().into_iter().chain([row[3].as_f64().unwrap()]).collect())
+                .collect();
+            let moved: [f64; 3] =
+                std::array::from_fn(|a| (0..3).map(|k| t[a][k] * from[k]).sum::<f64>() + t[a][3]);
+            offs.push(
+                (0..3).map(|k| (moved[k] - centre(to)[k]).abs() / (to.1[k] - to.0[k])).fold(0.0, f64::max),
+            );
+        }
+    }
+    let worst = offs.iter().copied().fold(0.0, f64::max);
+    let beyond = offs.iter().filter(|&&o| o > 0.25).count();
+    eprintln!("{} maps: worst {worst:.3} of a block's size off, {beyond} beyond a quarter", offs.len());
+    assert!(
+        worst < 0.6 && beyond <= offs.len() / 4,
+        "worst {worst:.3}, {beyond} of {} beyond a quarter",
+        offs.len()
+    );
 }

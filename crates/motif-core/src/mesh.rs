@@ -150,7 +150,9 @@ impl TriMesh {
 
     /// Total surface area.
     pub fn area(&self) -> f64 {
-        self.face_areas().iter().sum()
+        // + 0.0: Rust's sum of no floats is −0.0, which `motif info --json` printed for a point
+        // cloud's area.
+        self.face_areas().iter().sum::<f64>() + 0.0
     }
 
     /// Area-weighted vertex normals, unit length (zero for vertices with no non-degenerate

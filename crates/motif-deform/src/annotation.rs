@@ -191,6 +191,17 @@ pub fn group_closure(name: &str, generators: &[Mat4], diagonal: f64, tolerance: 
             });
         }
     }
+    for (i, g) in generators.iter().enumerate() {
+        if let Some((degrees, k, n)) = odd_turn(g, tolerance.max(1e-12)) {
+            return Err(DeformError::NotAFiniteTurn {
+                symmetry: name.to_string(),
+                transform: i,
+                degrees,
+                k,
+                n,
+            });
+        }
+    }
     let lin_tol = tolerance.max(1e-12);
     let trans_tol = lin_tol * diagonal;
     let mut elements = vec![IDENTITY4];
@@ -212,6 +223,37 @@ pub fn group_closure(name: &str, generators: &[Mat4], diagonal: f64, tolerance: 
         i += 1;
     }
     Ok(elements)
+}
+
+/// Largest `n` for which a generator may turn by `k · 360° / n` with `k > 1` (two fifths of a
+/// turn generates C5 as a fifth does; an annotation may give either). Beyond it the smallest turn
+/// is asked for: no designed model has a 13-fold symmetry given by its third power, while an
+/// angle that is no fraction of a turn (1 radian) matches `k / n` for some large `n` within any
+/// tolerance (113 / 710).
+const MAX_ORDER_OF_A_MULTIPLE_TURN: u64 = 12;
+
+/// For a rotation or rotoreflection whose angle θ (0–180°, from the trace) is `k · 360° / n` in
+/// lowest terms with `k > 1` and `n > MAX_ORDER_OF_A_MULTIPLE_TURN`, the angle in degrees and
+/// `(k, n)`; `None` otherwise (mirrors, inversions, half turns, `k = 1`). `n` is the smallest
+/// within [`MAX_GROUP_ORDER`] for which `n` turns by θ come within `tolerance` radians of whole
+/// turns: where [`group_closure`], which merges elements within `tolerance` entry-wise, would
+/// close the group.
+fn odd_turn(g: &Mat4, tolerance: f64) -> Option<(f64, u64, u64)> {
+    let l = [[g[0][0], g[0][1], g[0][2]], [g[1][0], g[1][1], g[1][2]], [g[2][0], g[2][1], g[2][2]]];
+    let det = l[0][0] * (l[1][1] * l[2][2] - l[1][2] * l[2][1])
+        - l[0][1] * (l[1][0] * l[2][2] - l[1][2] * l[2][0])
+        + l[0][2] * (l[1][0] * l[2][1] - l[1][1] * l[2][0]);
+    let trace = l[0][0] + l[1][1] + l[2][2];
+    // A rotation has trace 1 + 2cosθ; a rotoreflection (det −1) 2cosθ − 1.
+    let cos = if det >= 0.0 { (trace - 1.0) / 2.0 } else { (trace + 1.0) / 2.0 };
+    let theta = cos.clamp(-1.0, 1.0).acos();
+    let turns = theta / std::f64::consts::TAU;
+    let n = (1..=MAX_GROUP_ORDER as u64).find(|&n| {
+        let x = n as f64 * turns;
+        std::f64::consts::TAU * (x - x.round()).abs() <= tolerance
+    })?;
+    let k = (n as f64 * turns).round() as u64;
+    (k > 1 && n > MAX_ORDER_OF_A_MULTIPLE_TURN).then_some((theta.to_degrees(), k, n))
 }
 
 /// A compiled region: answers "is this vertex / point inside?".
@@ -670,8 +712,20 @@ mod tests {
         let t = motif_core::procedural::translation([1.0, 0.0, 0.0]);
         assert!(group_closure("slide", &[t], 1.0, 1e-4).is_err());
         // Within a loose tolerance a 1 rad rotation "closes" after 710 steps (710 ≡ 6e-5 mod 2π):
-        // the fit check of the session then rejects it.
-        assert_eq!(group_closure("loose", &[irrational], 1.0, 1e-4).map(|g| g.len()).ok(), Some(710));
+        // refused as 113·360°/710, not taken for a group of 710 elements.
+        let e = group_closure("loose", &[irrational], 1.0, 1e-4).unwrap_err();
+        assert!(matches!(e, DeformError::NotAFiniteTurn { k: 113, n: 710, .. }), "{e}");
+        // Two fifths of a turn generate C5 as a fifth does, and a 45° turn written with four
+        // decimals closes within the annotation's tolerance.
+        let two_fifths = rotation_about([0.0, 0.0, 1.0], [0.0; 3], 2.0 * std::f64::consts::TAU / 5.0);
+        assert_eq!(group_closure("c5", &[two_fifths], 1.0, 1e-4).unwrap().len(), 5);
+        let mut eighth = rotation_about([0.0, 0.0, 1.0], [0.0; 3], std::f64::consts::TAU / 8.0);
+        for row in eighth.iter_mut().take(3) {
+            for x in row.iter_mut().take(3) {
+                *x = (*x * 1e4).round() / 1e4;
+            }
+        }
+        assert_eq!(group_closure("c8", &[eighth], 1.0, 1e-3).unwrap().len(), 8);
     }
 
     #[test]

@@ -111,7 +111,7 @@ pub(crate) fn select_handle_samples(
     radius: f64,
     handles: &[Handle],
     margin: f64,
-) -> Result<Vec<Vec<u32>>> {
+) -> Result<(Vec<Vec<u32>>, Vec<Vec<u32>>)> {
     if handles.is_empty() {
         return Err(DeformError::NoHandles);
     }
@@ -129,8 +129,13 @@ pub(crate) fn select_handle_samples(
     };
     let mut owner: Vec<Option<usize>> = vec![None; samples.len()];
     let mut out = Vec::with_capacity(handles.len());
+    let mut handle_vertices = Vec::with_capacity(handles.len());
     for (h, t) in tests.iter().enumerate() {
-        let vertices = (0..mesh.num_vertices()).filter(|&v| t.contains_vertex(v, mesh.positions[v])).count();
+        let held: Vec<u32> = (0..mesh.num_vertices())
+            .filter(|&v| t.contains_vertex(v, mesh.positions[v]))
+            .map(|v| v as u32)
+            .collect();
+        let vertices = held.len();
         if vertices == 0 {
             return Err(DeformError::EmptyRegion { what: format!("handle {h}") });
         }
@@ -148,8 +153,9 @@ pub(crate) fn select_handle_samples(
             return Err(DeformError::HandleSelectsNoSample { handle: h, vertices, radius });
         }
         out.push(sel);
+        handle_vertices.push(held);
     }
-    Ok(out)
+    Ok((out, handle_vertices))
 }
 
 /// Systems with fewer unknowns are factorised densely, larger ones sparsely.

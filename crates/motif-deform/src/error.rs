@@ -88,6 +88,26 @@ pub enum DeformError {
         /// The largest group order accepted.
         limit: usize,
     },
+    /// A generator turns by an angle that is a multiple of 360°/n only for a large n, and not
+    /// 360°/n itself: an angle such as 1 radian, which closes into a "group" of 710 elements
+    /// within any tolerance (710 rad is 113 turns to within 6·10⁻⁵ rad).
+    #[error(
+        "symmetry {symmetry:?}: generator {transform} turns by {degrees:.4}°, which is {k}·360°/{n}; a finite \
+         rotation symmetry is given by its smallest turn, 360°/n (an angle that is no such fraction of a \
+         turn, like 1 radian, has no finite group)"
+    )]
+    NotAFiniteTurn {
+        /// The symmetry's name.
+        symmetry: String,
+        /// Index of the offending generator.
+        transform: usize,
+        /// Its turning angle, degrees (0–180).
+        degrees: f64,
+        /// The angle is `k · 360° / n` (in lowest terms).
+        k: u64,
+        /// See `k`.
+        n: u64,
+    },
     /// A region selects no vertex of the mesh.
     #[error(
         "{what} selects no vertex of the mesh: check its indices, box or sphere against the mesh's bounds"

@@ -191,6 +191,8 @@ pub struct DeformSession {
     positions: Vec<Point3>,
     lift_work: Vec<Point3>,
     fits: Vec<HandleFit>,
+    /// The vertices each handle's region holds (set with the handles).
+    handle_vertices: Vec<Vec<u32>>,
     warnings: Vec<String>,
     stats: DeformStats,
 }
@@ -326,6 +328,7 @@ impl DeformSession {
             positions: mesh.positions.clone(),
             lift_work,
             fits: Vec::new(),
+            handle_vertices: Vec::new(),
             warnings,
             stats,
         })
@@ -343,7 +346,7 @@ impl DeformSession {
     /// ([`DeformError::Unconstrained`], only with `editing.regularization = 0`).
     pub fn set_handles(&mut self, handles: &[Handle]) -> Result<()> {
         let t = Instant::now();
-        let selected = select_handle_samples(
+        let (selected, handle_vertices) = select_handle_samples(
             &self.mesh,
             &self.sampling.positions,
             self.sampling.radius,
@@ -366,6 +369,7 @@ impl DeformSession {
             .map(|(h, s)| HandleFit { handle: h, samples: s.len(), max_error: 0.0, rms_error: 0.0 })
             .collect();
         self.system = Some(system);
+        self.handle_vertices = handle_vertices;
         self.positions.copy_from_slice(&self.rest);
         self.stats.timings.prefactor_ms = ms(t);
         Ok(())
@@ -448,6 +452,27 @@ impl DeformSession {
     /// How closely each handle reached its target in the last solve.
     pub fn handle_fit(&self) -> &[HandleFit] {
         &self.fits
+    }
+
+    /// Per handle, the largest distance of its region's vertices in the last solve from where
+    /// `handle_transforms` send their rest positions, relative to the diagonal. The handles
+    /// constrain samples ([`DeformSession::handle_fit`]); the vertices between them follow the
+    /// lifting, so this is what a user measures on the written mesh.
+    pub fn handle_vertex_fit(&self, handle_transforms: &[Mat4]) -> Vec<f64> {
+        let d = self.stats.diagonal;
+        self.handle_vertices
+            .iter()
+            .zip(handle_transforms)
+            .map(|(vs, m)| {
+                vs.iter()
+                    .map(|&v| {
+                        let target = motif_core::geometry::transform_point(m, self.rest[v as usize]);
+                        motif_core::geometry::dist(target, self.positions[v as usize])
+                    })
+                    .fold(0.0, f64::max)
+                    / d
+            })
+            .collect()
     }
 
     /// Samples of each handle of the current handle set (empty before `set_handles`).

@@ -494,15 +494,25 @@ pub fn evaluate_many<'a>(
     let mean_stress = taus.iter().enumerate().map(|(k, &tau)| (tau, mean(&|s| s.stress[k].1))).collect();
 
     let mut annotated: Vec<AnnotatedClassTotals> = Vec::new();
-    for c in scenes.iter().flat_map(|s| &s.annotated) {
-        match annotated.iter_mut().find(|t| t.name == c.name) {
-            Some(t) => {
-                t.scenes += 1;
+    // The last scene that added to each row: two classes of one name in one scene (a ground
+    // truth may repeat a name) count that scene once.
+    let mut last_scene: Vec<usize> = Vec::new();
+    for (k, c) in scenes.iter().enumerate().flat_map(|(k, s)| s.annotated.iter().map(move |c| (k, c))) {
+        match annotated.iter_mut().position(|t| t.name == c.name) {
+            Some(row) => {
+                let t = &mut annotated[row];
+                if last_scene[row] != k {
+                    t.scenes += 1;
+                    last_scene[row] = k;
+                }
                 t.instances += c.instances;
                 t.found += c.found;
                 t.recalled += c.recalled;
             }
-            None => annotated.push(c.into()),
+            None => {
+                annotated.push(c.into());
+                last_scene.push(k);
+            }
         }
     }
 

@@ -310,7 +310,9 @@ pub fn preprocess(cloud: &PointCloud, o: &PreprocessOptions, force: bool) -> Res
             source: Vec::new(),
             features: Vec::new(),
             normals_estimated: cloud.normals.is_none(),
-            warnings: vec![if cloud.len() < 10 {
+            warnings: vec![if cloud.len() == 1 {
+                "only 1 point: nothing to detect".to_string()
+            } else if cloud.len() < 10 {
                 format!("only {} points: nothing to detect", cloud.len())
             } else {
                 format!("the {} points span no extent (all coincide): nothing to detect", cloud.len())
@@ -341,15 +343,29 @@ pub fn preprocess(cloud: &PointCloud, o: &PreprocessOptions, force: bool) -> Res
             message: format!("ε must be positive and finite, got {epsilon}"),
         });
     }
+    // Which ε it is, in the terms the user gave it (or did not: the automatic one).
+    let which = match o.epsilon {
+        Epsilon::Relative(r) => format!("ε = {r:e} × the diagonal = {epsilon:.3e}"),
+        Epsilon::Absolute(_) => format!("ε = {epsilon:.3e}"),
+        Epsilon::Auto => format!(
+            "the automatic ε ({epsilon:.3e}, 1.02 × the input's median point spacing, as the input is sparser \
+             than the thesis's 0.0005 × diagonal)"
+        ),
+    };
     if epsilon > MAX_EPSILON_SHARE * diagonal && !force {
         return Err(DetectError::InvalidOption {
             name: "epsilon",
             message: format!(
-                "ε = {epsilon:.3e} is {:.2} of the diagonal ({diagonal:.3e}); above 1/16 of it the surface \
+                "{which} is {:.2} of the diagonal ({diagonal:.3e}); above 1/16 of it the surface \
                  resamples to a few hundred points and one HOC cell (8ε) spans half the model, so \
                  nothing can repeat (the thesis uses 0.0005 × diagonal for shapes, 0.00005 for city \
-                 scans); choose a smaller ε or pass --force",
-                epsilon / diagonal
+                 scans); {}",
+                epsilon / diagonal,
+                if o.epsilon == Epsilon::Auto {
+                    "the input has too few points for detection (pass --force to try anyway)"
+                } else {
+                    "choose a smaller ε or pass --force"
+                }
             ),
         });
     }
@@ -362,8 +378,11 @@ pub fn preprocess(cloud: &PointCloud, o: &PreprocessOptions, force: bool) -> Res
         return Err(DetectError::InvalidOption {
             name: "epsilon",
             message: format!(
-                "ε = {epsilon:.3e} would resample the surface to about {estimate:.1e} points (limit {:.0e}); \
-                 choose a larger ε or pass --force",
+                "{which} is {:.1e} of the diagonal: a surface this size sampled that densely holds about \
+                 {estimate:.1e} points (limit {:.0e}), and the detector's lengths (HOC cells of 8ε, \
+                 pairs within 64ε) would lie far below what the data can show; choose a larger ε or \
+                 pass --force",
+                epsilon / diagonal,
                 o.max_points as f64
             ),
         });

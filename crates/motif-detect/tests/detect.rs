@@ -252,3 +252,35 @@ fn options_out_of_range_are_refused_by_name() {
         assert!(err.to_string().contains(name), "{name}: {err}");
     }
 }
+
+/// On a mesh, the instances' `points` name the mesh's vertices (the input's points), not the
+/// surface samples the detection ran on: each is a vertex index, and lies in its instance's box
+/// up to the sample spacing.
+#[test]
+fn a_mesh_detection_lists_vertices_as_points() {
+    let ex = motif_core::procedural::generate("facade", 1).expect("facade");
+    let o = DetectOptions { seed: 3, mesh_samples: 60_000, ..Default::default() };
+    let d = motif_detect::detect_mesh(&ex.mesh, "facade", &o, &NoProgress, false).expect("detection");
+    assert!(!d.result.classes.is_empty(), "nothing detected: {:?}", d.report);
+    let n = ex.mesh.positions.len();
+    let slack = 4.0 * d.report.epsilon;
+    let mut listed = 0;
+    for c in &d.result.classes {
+        for inst in &c.instances {
+            let pts = inst.points.as_ref().expect("points are listed");
+            assert!(pts.windows(2).all(|w| w[0] < w[1]), "sorted, unique");
+            for &v in pts {
+                assert!((v as usize) < n, "point {v} of a mesh with {n} vertices");
+                let p = ex.mesh.positions[v as usize];
+                assert!(
+                    (0..3).all(|k| p[k] >= inst.bbox_min[k] - slack && p[k] <= inst.bbox_max[k] + slack),
+                    "vertex {v} at {p:?} outside its box {:?}..{:?}",
+                    inst.bbox_min,
+                    inst.bbox_max
+                );
+            }
+            listed += pts.len();
+        }
+    }
+    assert!(listed > 0, "some vertices are listed");
+}

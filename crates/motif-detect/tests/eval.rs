@@ -441,3 +441,21 @@ fn plots_are_png() {
     let err = plot_pr_and_stress(&rep, &dir.path().join("no_dir/x.png")).expect_err("bad dir");
     assert!(matches!(err, DetectError::Plot { .. }));
 }
+
+/// Two annotated classes of one name in one scene are one scene of that name in the per-class
+/// totals (they were counted as two scenes).
+#[test]
+fn a_name_repeated_in_one_scene_counts_that_scene_once() {
+    let mut a = class(&[0.0, 10.0]);
+    a.name = Some("A".into());
+    let mut b = class(&[100.0, 110.0]);
+    b.name = Some("A".into());
+    let gt = scene(vec![a, b]);
+    let det = scene(vec![class(&[0.0, 10.0])]);
+    let summary = evaluate_many([(&det, &gt)], &EvalOptions::default()).expect("valid");
+    let rows: Vec<(&str, usize, usize)> =
+        summary.annotated.iter().map(|t| (t.name.as_str(), t.scenes, t.instances)).collect();
+    assert_eq!(rows, [("A", 1, 4)]);
+    let two = evaluate_many([(&det, &gt), (&det, &gt)], &EvalOptions::default()).expect("valid");
+    assert_eq!((two.annotated[0].scenes, two.annotated[0].instances), (2, 8));
+}

@@ -1027,8 +1027,7 @@ pub fn save_detections(shared: &Shared, path: &str, overwrite: bool) -> Result<V
 
 /// Building-block detection of a model (`motif_detect`, thesis chapter 5): the one place the
 /// detection pipeline is called from. Meshes are sampled on their surface by
-/// [`motif_detect::detect_mesh`]; the instance point lists then index those samples, not the
-/// mesh's vertices, so they are dropped and the vertices are coloured by the instance boxes.
+/// [`motif_detect::detect_mesh`], whose instance point lists name the mesh's vertices.
 pub fn detect_building_blocks(
     model: &Model,
     name: &str,
@@ -1037,13 +1036,7 @@ pub fn detect_building_blocks(
 ) -> Result<DetectionResult> {
     let options = motif_detect::DetectOptions { seed, ..Default::default() };
     if model.is_mesh() {
-        let mut d = motif_detect::detect_mesh(&model.mesh(), name, &options, progress, false)?;
-        for c in &mut d.result.classes {
-            for i in &mut c.instances {
-                i.points = None;
-            }
-        }
-        Ok(d.result)
+        Ok(motif_detect::detect_mesh(&model.mesh(), name, &options, progress, false)?.result)
     } else {
         // Zero normals (NaN ones read as zero) are estimated from the points around them (all of
         // them, as for a cloud without normals, when more than half are zero).

@@ -112,6 +112,7 @@ pub fn run(a: AlignArgs, g: &GlobalArgs) -> anyhow::Result<()> {
         }
         super::write_model(out, &moved, &[&a.source, &a.target], g, &a.encoding)?;
     }
+    let trim = options.trim_fraction;
     let report = AlignReport {
         source: a.source.display().to_string(),
         target: a.target.display().to_string(),
@@ -128,10 +129,13 @@ pub fn run(a: AlignArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     if crate::output::json_on_stdout(&a.json.json) {
         return Ok(());
     }
+    // Trimmed ICP keeps at most `--trim` of the pairs, so the share is no inlier count: an exact
+    // match read "90.0% inliers".
     println!(
-        "rmse {:.6e} over {:.1}% inliers, {} iterations{}",
+        "rmse {:.6e} over {:.1}% of the source points (the closest {:.0}% of the pairs within reach, --trim), {} iterations{}",
         r.rmse,
         100.0 * r.inlier_fraction,
+        100.0 * trim,
         r.iterations,
         if r.converged { "" } else { " (not converged)" }
     );

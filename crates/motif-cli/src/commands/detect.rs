@@ -144,7 +144,22 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
     } else {
         motif_detect::detect(&model.vertices, &scene, &o, &bar, g.force)
     }
-    .map_err(|e| anyhow::Error::new(e).context(format!("detecting in {}", a.input.display())))?;
+    .map_err(|e| {
+        // ε's limits speak of the flag the user gave, or of the automatic ε when none was given
+        // (it read "invalid option `epsilon`", a name the command line does not have).
+        let e = match e {
+            motif_detect::DetectError::InvalidOption { name: "epsilon", message } => {
+                let flag = match o.preprocess.epsilon {
+                    Epsilon::Relative(_) => "--epsilon: ",
+                    Epsilon::Absolute(_) => "--epsilon-abs: ",
+                    Epsilon::Auto => "",
+                };
+                crate::output::bad_input(format!("{flag}{message}"))
+            }
+            e => anyhow::Error::new(e),
+        };
+        e.context(format!("detecting in {}", a.input.display()))
+    })?;
     let seconds = t.elapsed().as_secs_f64();
     for w in &detection.report.warnings {
         super::warn(w);
@@ -185,7 +200,21 @@ pub fn run(a: DetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             }
             annotation
         } else {
-            detection.as_symmetry()
+            // A point cloud has no surface to check the copies against, as `symmetry check`
+            // does for a mesh: the tolerance written is the format's default, not a measure.
+            let annotation = detection.as_symmetry();
+            if !detection.result.classes.is_empty() {
+                super::warn(format!(
+                    "{}: the instance sets are not checked against their tolerance ({:.0e} of the \
+                     diagonal): {} is a point cloud, with no surface to measure the copies on; run \
+                     `motif symmetry check MESH {}` on the mesh it was scanned from before deforming it",
+                    p.display(),
+                    annotation.tolerance,
+                    a.input.display(),
+                    p.display()
+                ));
+            }
+            annotation
         };
         write_json(p, &annotation)?;
     }

@@ -148,7 +148,14 @@ pub fn warn(msg: impl AsRef<str>) {
 /// stderr (hidden by --quiet). Before, both were one note, so --quiet hid the only result of
 /// `curvature`, `sample`, `normals`, `features shot`, `convert` and `example`.
 pub fn written(g: &crate::cli::GlobalArgs, output: impl std::fmt::Display, summary: impl AsRef<str>) {
-    println!("{output}: {}", crate::output::tidy_numbers(summary.as_ref()));
+    let line = format!("{output}: {}", crate::output::tidy_numbers(summary.as_ref()));
+    // With a document on stdout (`example scene-facade s.ply --gt -`), the summary goes to
+    // stderr, where it cannot corrupt the document.
+    if crate::output::stdout_is_a_document() {
+        eprintln!("{line}");
+    } else {
+        println!("{line}");
+    }
     note(g, format!("wrote {output}"));
 }
 

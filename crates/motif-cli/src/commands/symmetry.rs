@@ -108,16 +108,23 @@ pub fn detect(a: SymmetryDetectArgs, g: &GlobalArgs) -> anyhow::Result<()> {
             );
         }
         if !det.report.approximate.is_empty() {
-            println!(
-                "{} (residual < {:.0e}) not annotated{}",
-                crate::output::count(
-                    det.report.approximate.len(),
-                    "approximate symmetry",
-                    "approximate symmetries"
-                ),
-                options.approximate_tolerance,
-                if a.approximate { "" } else { "; --approximate adds them" }
+            let n = crate::output::count(
+                det.report.approximate.len(),
+                "approximate symmetry",
+                "approximate symmetries",
             );
+            // With --approximate they are among the groups above, and in the annotation.
+            if a.approximate {
+                println!(
+                    "{n} (residual < {:.0e}) annotated above, as --approximate asks",
+                    options.approximate_tolerance
+                );
+            } else {
+                println!(
+                    "{n} (residual < {:.0e}) not annotated; --approximate adds them",
+                    options.approximate_tolerance
+                );
+            }
         }
     }
     if !g.quiet {

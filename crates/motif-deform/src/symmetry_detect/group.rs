@@ -389,7 +389,35 @@ pub(crate) fn choose_generators(
             gens = rest;
         }
     }
-    gens
+    gens.iter().map(|m| describable_power(m, metric, merge, order)).collect()
+}
+
+/// `m`, or a power of it that generates the same cyclic group and that [`element_of`] can name:
+/// a rotation by `k · 360° / n` or a rotoreflection `S_nᵏ` (`k` coprime to `n`) becomes the one
+/// by `360° / n`. Ih was chosen as C5 and `S10³` (a turn of 108° and a reflection), which had no
+/// name, so the group was described by its C5 alone.
+fn describable_power(m: &Mat4, metric: &TransformMetric, merge: f64, max_order: usize) -> Mat4 {
+    if element_of(m, [0.0; 3]).is_some() {
+        return *m;
+    }
+    let mut powers = vec![IDENTITY4];
+    let mut p = *m;
+    while powers.len() <= max_order && !group_contains(&[IDENTITY4], &p, metric, merge) {
+        powers.push(p);
+        p = mat4_mul(m, &p);
+    }
+    let n = powers.len();
+    let coprime = |mut a: usize, mut b: usize| {
+        while b != 0 {
+            (a, b) = (b, a % b);
+        }
+        a == 1
+    };
+    (2..n)
+        .filter(|&j| coprime(j, n))
+        .map(|j| powers[j])
+        .find(|q| element_of(q, [0.0; 3]).is_some())
+        .unwrap_or(*m)
 }
 
 #[cfg(test)]
@@ -440,6 +468,37 @@ mod tests {
         let gens = choose_generators(&g, &st, &metric(), 1e-6);
         assert!(gens.len() <= 3);
         assert_eq!(group_closure(&gens, &metric(), 1e-6, 240).unwrap().len(), 48);
+    }
+
+    /// Every generator chosen for Ih (the icosahedron's 120 elements, with the inversion) has a
+    /// name: one was `S10³`, which [`element_of`] cannot name, and the group's description and
+    /// picture then showed its C5 axis alone.
+    #[test]
+    fn icosahedral_generators_all_have_names() {
+        let phi = (1.0 + 5f64.sqrt()) / 2.0;
+        let c5 = rotation_about([0.0, 1.0, phi], [0.0; 3], TAU / 5.0);
+        let c3 = rotation_about([1.0, 1.0, 1.0], [0.0; 3], TAU / 3.0);
+        let mut inversion = IDENTITY4;
+        for k in 0..3 {
+            inversion[k][k] = -1.0;
+        }
+        let g = group_closure(&[c5, c3, inversion], &metric(), 1e-6, 240).unwrap();
+        assert_eq!(g.len(), 120);
+        let st = classify(&g);
+        assert_eq!(st.schoenflies, "Ih");
+        let gens = choose_generators(&g, &st, &metric(), 1e-6);
+        assert_eq!(group_closure(&gens, &metric(), 1e-6, 240).unwrap().len(), 120);
+        for m in &gens {
+            assert!(element_of(m, [0.0; 3]).is_some(), "{:?} has no name", kind_of(m));
+        }
+        // S10³ itself is named by its power S10, which generates the same group.
+        let s10 =
+            SymmetryElement::RotoReflection { axis: [0.0, 0.0, 1.0], point: [0.0; 3], order: 10 }.matrix();
+        let cube = mat4_mul(&s10, &mat4_mul(&s10, &s10));
+        assert!(element_of(&cube, [0.0; 3]).is_none());
+        let named = describable_power(&cube, &metric(), 1e-6, 240);
+        assert!(element_of(&named, [0.0; 3]).is_some());
+        assert_eq!(group_closure(&[named], &metric(), 1e-6, 240).unwrap().len(), 10);
     }
 
     #[test]
